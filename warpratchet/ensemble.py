@@ -1,0 +1,351 @@
+"""Ensembles of points of the map: state, initial-condition samplers and the run loop.
+
+An :class:`Ensemble` owns the per-point state on a Warp device and advances it with the kernel
+of :mod:`warpratchet.kernels`. State per point (all float64 unless noted, 56 bytes in all)::
+
+    x            position in [0, 1)
+    q            fractional momentum in [0, 1)
+    winding      int64, whole units of momentum gained since step 0
+    p0           initial momentum (as given; only p0 mod 1 enters the dynamics)
+    dx, dp       tangent vector under DM, started at (1, 0)
+    log_stretch  log of the tangent norm removed by renormalisation
+
+so ``p_n = floor(p0) + winding + q`` and ``A_n = (winding + q - frac(p0)) / n`` (Eq. An) keep
+full precision however far the momentum runs. On the CPU the points are sharded over one
+Python thread per core (a Warp CPU launch runs on one thread and releases the GIL); each point
+is independent, so results are bitwise identical for any thread count.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+import warp as wp
+
+from . import kernels
+from .params import MapParams
+
+__all__ = [
+    "STATE_FIELDS",
+    "SAMPLERS",
+    "Observer",
+    "Ensemble",
+    "sample_strip",
+    "sample_torus",
+    "sample_grid",
+    "default_threads",
+    "default_chunk_steps",
+]
+
+#: Per-point state arrays, in the order archives store them.
+STATE_FIELDS = ("x", "q", "winding", "p0", "dx", "dp", "log_stretch")
+#: Initial-condition samplers by name (``"user"`` is an ensemble built from arrays).
+SAMPLERS = ("strip", "torus", "grid")
+
+#: Grid offset in units of the spacing: the golden-ratio fraction keeps grid points off the
+#: kinks x = b1 and x = 1 - b2 for any rational b1, b2 with small denominators.
+GRID_OFFSET = (math.sqrt(5.0) - 1.0) / 2.0
+
+
+# -- initial conditions ---------------------------------------------------------------------
+def sample_strip(params: MapParams, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` points uniform in the hyperbolic strip B of Eq. (B).
+
+    B is ``-b2 <= x <= b1`` (mod 1), ``0 <= p < 1``: the ensemble of Figs. 2 and 7-9.
+    Returns ``(x, p)``, each of shape ``(n,)``, in ``[0, 1)``.
+    """
+    x = np.mod(-params.b2 + params.b * rng.random(n), 1.0)
+    return x, rng.random(n)
+
+
+def sample_torus(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` points uniform on the unit torus ``[0, 1)^2``."""
+    return rng.random(n), rng.random(n)
+
+
+def sample_grid(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """A regular ``G x G`` grid on the torus with ``G = isqrt(n)`` (so ``G^2 <= n`` points).
+
+    Nodes sit at ``((i + o)/G, (j + o)/G)`` with the irrational offset ``o`` of
+    :data:`GRID_OFFSET`, so no node lands on a kink of the force.
+    """
+    side = math.isqrt(n)
+    if side < 1:
+        raise ValueError(f"points = {n!r} is too few for a grid (need at least 1)")
+    axis = (np.arange(side) + GRID_OFFSET) / side
+    x, p = np.meshgrid(axis, axis, indexing="xy")
+    return x.ravel(), p.ravel()
+
+
+def default_threads() -> int:
+    """One thread per core this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def default_chunk_steps(points: int) -> int:
+    """Steps per chunk: about 2.5e8 point-steps (~0.3-0.5 s here), between 16 and 10^5 steps.
+
+    Long enough that per-chunk Python work (observers, progress) is noise, short enough that
+    progress bars move and a checkpoint is never far behind.
+    """
+    return int(min(100_000, max(16, 250_000_000 // max(points, 1))))
+
+
+class Observer:
+    """Receives the ensemble after each chunk of :meth:`Ensemble.run`.
+
+    Subclass and override what you need; archives, recordings and progress bars are observers.
+    """
+
+    def begin(self, ensemble: Ensemble, target_step: int) -> None:
+        """Called once before the first chunk; the run will stop at ``target_step``."""
+
+    def after_chunk(self, ensemble: Ensemble, seconds: float) -> None:
+        """Called after each chunk; ``seconds`` is the chunk's wall time."""
+
+    def end(self, ensemble: Ensemble) -> None:
+        """Called once after the last chunk (also when the run is interrupted)."""
+
+
+class Ensemble:
+    """Points of the map (Eq. cpem) and their tangents, advanced together.
+
+    Parameters
+    ----------
+    params : MapParams
+        The map.
+    x0, p0 : array_like, shape (n,)
+        Initial positions (taken mod 1) and momenta.
+    device : str, optional
+        Warp device, e.g. ``"cpu"`` or ``"cuda:0"``; default ``"cpu"``.
+    threads : int, optional
+        CPU threads to shard over (default: one per core). Ignored on a GPU.
+    sampler, seed : str, int, optional
+        Provenance recorded in archives (set by :meth:`sample`).
+    """
+
+    def __init__(
+        self,
+        params: MapParams,
+        x0: np.ndarray,
+        p0: np.ndarray,
+        *,
+        device: str | None = None,
+        threads: int | None = None,
+        sampler: str = "user",
+        seed: int | None = None,
+    ) -> None:
+        x0 = np.asarray(x0, dtype=np.float64)
+        p0 = np.asarray(p0, dtype=np.float64)
+        if x0.ndim != 1 or x0.shape != p0.shape:
+            raise ValueError(f"x0 and p0 must be 1-D arrays of equal length; got shapes {x0.shape}, {p0.shape}")
+        if x0.size == 0:
+            raise ValueError("an ensemble needs at least 1 point; got 0")
+        if not (np.all(np.isfinite(x0)) and np.all(np.isfinite(p0))):
+            raise ValueError("x0 and p0 must be finite")
+        if np.any(np.abs(p0) >= 2.0**52):
+            raise ValueError("|p0| must be below 2^52 so that p0 mod 1 is exact")
+        whole = np.floor(p0)
+        state = {
+            "x": np.mod(x0, 1.0),
+            "q": p0 - whole,
+            "winding": np.zeros(x0.size, dtype=np.int64),
+            "p0": p0.copy(),
+            "dx": np.ones_like(x0),
+            "dp": np.zeros_like(x0),
+            "log_stretch": np.zeros_like(x0),
+        }
+        state["x"][state["x"] >= 1.0] = 0.0  # mod of a tiny negative number rounds to 1
+        self._setup(params, state, 0, device, threads, sampler, seed)
+
+    def _setup(self, params, state, step, device, threads, sampler, seed) -> None:
+        kernels.init_warp()
+        self.params = params
+        self.device = str(wp.get_device(device or "cpu"))
+        if threads is None:
+            threads = default_threads()
+        if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
+            raise ValueError(f"threads = {threads!r} is outside the allowed range threads >= 1")
+        self.threads = threads
+        self.sampler = sampler
+        self.seed = seed
+        self.step = int(step)
+        n = state["x"].size
+        self._arrays = {
+            name: wp.array(
+                np.ascontiguousarray(state[name]),
+                dtype=wp.int64 if name == "winding" else wp.float64,
+                device=self.device,
+            )
+            for name in STATE_FIELDS
+        }
+        self.points = n
+
+    # -- construction -----------------------------------------------------------------------
+    @classmethod
+    def sample(
+        cls,
+        params: MapParams,
+        points: int,
+        init: str = "strip",
+        seed: int = 0,
+        *,
+        device: str | None = None,
+        threads: int | None = None,
+    ) -> Ensemble:
+        """An ensemble from a named sampler (``"strip"``, ``"torus"`` or ``"grid"``).
+
+        Seeded with ``numpy.random.default_rng(seed)``: the same arguments give the same points.
+        """
+        if isinstance(points, bool) or not isinstance(points, int) or points < 1:
+            raise ValueError(f"points = {points!r} is outside the allowed range points >= 1")
+        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+            raise ValueError(f"seed = {seed!r} is outside the allowed range seed >= 0 (an integer)")
+        rng = np.random.default_rng(seed)
+        if init == "strip":
+            x, p = sample_strip(params, points, rng)
+        elif init == "torus":
+            x, p = sample_torus(points, rng)
+        elif init == "grid":
+            x, p = sample_grid(points)
+        else:
+            raise ValueError(f"init = {init!r} is not one of {', '.join(SAMPLERS)}")
+        return cls(params, x, p, device=device, threads=threads, sampler=init, seed=seed)
+
+    @classmethod
+    def from_state(
+        cls,
+        params: MapParams,
+        state: dict[str, np.ndarray],
+        step: int,
+        *,
+        device: str | None = None,
+        threads: int | None = None,
+        sampler: str = "user",
+        seed: int | None = None,
+    ) -> Ensemble:
+        """Rebuild an ensemble exactly from :meth:`state` output (checkpoints, exact restart)."""
+        missing = [name for name in STATE_FIELDS if name not in state]
+        if missing:
+            raise ValueError(f"state is missing fields {missing}")
+        sizes = {np.asarray(state[name]).shape for name in STATE_FIELDS}
+        if len(sizes) != 1 or len(next(iter(sizes))) != 1:
+            raise ValueError(f"state fields must be 1-D arrays of one length; got shapes {sizes}")
+        obj = cls.__new__(cls)
+        obj._setup(params, state, step, device, threads, sampler, seed)
+        return obj
+
+    # -- access -------------------------------------------------------------------------------
+    def array(self, name: str) -> np.ndarray:
+        """One state field as a NumPy array, shape ``(points,)``.
+
+        On the CPU this is a zero-copy view of the live state: copy it before the next run.
+        """
+        return self._arrays[name].numpy()
+
+    def state(self) -> dict[str, np.ndarray]:
+        """A copy of every state field (keys :data:`STATE_FIELDS`)."""
+        return {name: np.array(self.array(name), copy=True) for name in STATE_FIELDS}
+
+    def momentum(self) -> np.ndarray:
+        """Absolute momentum ``p_n = floor(p0) + winding + q``, shape ``(points,)``."""
+        return np.floor(self.array("p0")) + self.array("winding") + self.array("q")
+
+    # -- dynamics -----------------------------------------------------------------------------
+    def _launch(self, lo: int, hi: int, steps: int) -> None:
+        p = self.params
+        a = self._arrays
+        wp.launch(
+            kernels.advance_map,
+            dim=kernels.launch_dim(hi - lo),
+            inputs=[
+                a["x"][lo:hi],
+                a["q"][lo:hi],
+                a["winding"][lo:hi],
+                a["dx"][lo:hi],
+                a["dp"][lo:hi],
+                a["log_stretch"][lo:hi],
+                hi - lo,
+                self.step,
+                steps,
+                p.K,
+                p.b1,
+                1.0 - p.b2,
+                p.l1,
+                p.l2,
+                p.c,
+            ],
+            device=self.device,
+        )
+
+    def _advance(self, steps: int, pool: ThreadPoolExecutor | None) -> None:
+        if pool is None:
+            self._launch(0, self.points, steps)
+            wp.synchronize_device(self.device)
+        else:
+            bounds = np.linspace(0, self.points, self.threads + 1).astype(int)
+            shards = [(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:]) if hi > lo]
+            for future in [pool.submit(self._launch, lo, hi, steps) for lo, hi in shards]:
+                future.result()
+        self.step += steps
+
+    def run(
+        self,
+        steps: int,
+        observers: Sequence[Observer] | Iterable[Observer] = (),
+        chunk_steps: int | None = None,
+    ) -> Ensemble:
+        """Advance every point by ``steps`` iterations, in chunks, calling observers after each.
+
+        Parameters
+        ----------
+        steps : int
+            Iterations to add (``>= 0``).
+        observers : sequence of Observer
+            Called with :meth:`Observer.after_chunk` after every chunk.
+        chunk_steps : int, optional
+            Steps per chunk (default :func:`default_chunk_steps`). The result does not depend on it.
+        """
+        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
+            raise ValueError(f"steps = {steps!r} is outside the allowed range steps >= 0")
+        if chunk_steps is None:
+            chunk_steps = default_chunk_steps(self.points)
+        if isinstance(chunk_steps, bool) or not isinstance(chunk_steps, int) or chunk_steps < 1:
+            raise ValueError(f"chunk_steps = {chunk_steps!r} is outside the allowed range chunk_steps >= 1")
+        observers = list(observers)
+        target = self.step + steps
+        # Compile (or load from cache) before any thread launches.
+        wp.load_module(kernels, device=self.device)
+        use_pool = wp.get_device(self.device).is_cpu and self.threads > 1 and self.points > 1
+        pool = ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet") if use_pool else None
+        for obs in observers:
+            obs.begin(self, target)
+        try:
+            while self.step < target:
+                todo = min(chunk_steps, target - self.step)
+                start = time.perf_counter()
+                self._advance(todo, pool)
+                seconds = time.perf_counter() - start
+                for obs in observers:
+                    obs.after_chunk(self, seconds)
+        finally:
+            if pool is not None:
+                pool.shutdown()
+            for obs in observers:
+                obs.end(self)
+        return self
+
+    def __repr__(self) -> str:
+        p = self.params
+        return (
+            f"Ensemble(K={p.K!r}, b1={p.b1!r}, b2={p.b2!r}, points={self.points}, step={self.step}, "
+            f"device={self.device!r}, threads={self.threads})"
+        )

@@ -1,0 +1,187 @@
+"""Every Warp kernel of warpratchet.
+
+The map (Eq. cpem) and its tangent ``DM`` are advanced *inside* one kernel for ``steps``
+iterations, so that a launch does real work: on the CPU a Warp launch runs on one thread, and
+the ensemble layer shards points over one Python thread per core.
+
+Arithmetic (``warpratchet.reference`` repeats it operation by operation in NumPy, which is what
+makes the two bitwise equal):
+
+* force, Eq. (fx): ``f = l1*x`` if ``x <= b1``; ``c - x`` if ``x < 1 - b2``; ``l2*(x - 1)``;
+* momentum kept as an integer winding ``w`` plus a fraction ``q`` in ``[0, 1)``:
+  ``t = q + K*f``, ``w += floor(t)``, ``q = t - floor(t)``, and a ``q`` that rounds up to
+  exactly 1 (``t`` just below an integer) is folded to 0 with ``w += 1``. A float64 momentum
+  that grew to 10^4 would lose the digits that ``x' = x + p' mod 1`` needs;
+* ``x' = x + q``, minus 1 if that is ``>= 1`` (exact: ``x + q < 2``);
+* tangent ``(dx, dp)``: ``dp' = dp + (K*f')*dx``, ``dx' = dx + dp'`` (``det DM = 1``);
+* after every global step that is a multiple of ``RENORM_CHECK_EVERY``, a tangent with
+  ``|dx| > RENORM_THRESHOLD`` is divided by its norm ``h = sqrt(dx^2 + dp^2)`` and ``log(h)``
+  is added to the log-stretch. Checks sit at *global* step numbers, so a run split into any
+  chunks (or resumed from an archive) renormalises at the same steps and stays bitwise equal.
+
+Speed: each Warp thread advances ``INTERLEAVE`` points (indices ``tid + k*stride``) held in
+small vectors; the lanes are independent and identical, so LLVM vectorises them (SLP) and
+the CPU overlaps their dependency chains. The force branch is chosen with ``wp.where``, and
+the renormalisation test runs once every 8 steps, keeping the step body branch free.
+Measured on 2 cores (AMD EPYC, AVX): ~450 M point-steps/s per thread, against ~270 with one
+point per thread and a test every step.
+"""
+
+from __future__ import annotations
+
+import os
+
+import warp as wp
+
+# The tangent is carried explicitly; Warp's adjoint code would only cost compile time.
+wp.set_module_options({"enable_backward": False, "optimization_level": 3})
+
+__all__ = [
+    "advance_map",
+    "RENORM_THRESHOLD",
+    "RENORM_CHECK_EVERY",
+    "INTERLEAVE",
+    "init_warp",
+    "launch_dim",
+]
+
+#: Renormalise the tangent when ``|dx|`` passes this. Between two checks (8 steps) a vector
+#: grows by at most ``(2 + K max(l1, l2))^8``, below 1e208 for every ``b1, b2 > 1e-25``.
+RENORM_THRESHOLD = 1.0e100
+#: Steps between two renormalisation checks (a power of two: the test is a bit mask).
+RENORM_CHECK_EVERY = 8
+#: Points advanced per Warp thread.
+INTERLEAVE = 8
+
+_initialised = False
+
+
+def init_warp() -> None:
+    """Initialise Warp once, quietly (module-load lines on only if WARPRATCHET_VERBOSE is set)."""
+    global _initialised
+    if _initialised:
+        return
+    if not os.environ.get("WARPRATCHET_VERBOSE"):
+        wp.config.quiet = True
+        wp.config.log_level = 30  # logging.WARNING
+    wp.init()
+    _initialised = True
+
+
+def launch_dim(n: int) -> int:
+    """Number of Warp threads that advance ``n`` points."""
+    return (n + INTERLEAVE - 1) // INTERLEAVE
+
+
+@wp.func
+def _step(
+    x: wp.float64,
+    q: wp.float64,
+    w: wp.float64,
+    dx: wp.float64,
+    dp: wp.float64,
+    K: wp.float64,
+    b1: wp.float64,
+    right: wp.float64,
+    l1: wp.float64,
+    l2: wp.float64,
+    c: wp.float64,
+):
+    """One iteration of Eq. (cpem) and of ``DM`` for one point (arithmetic: module docstring)."""
+    one = wp.float64(1.0)
+    zero = wp.float64(0.0)
+    in_left = x <= b1
+    in_middle = x < right
+    # Eq. (fx) and its slope; wp.where keeps the step branch free (and vectorisable).
+    f = wp.where(in_left, l1 * x, wp.where(in_middle, c - x, l2 * (x - one)))
+    slope = wp.where(in_left, l1, wp.where(in_middle, -one, l2))
+    t = q + K * f
+    fl = wp.floor(t)
+    q = t - fl
+    # t just below an integer can round t - floor(t) up to exactly 1: fold it back.
+    wrap = q >= one
+    q = wp.where(wrap, zero, q)
+    w = w + fl + wp.where(wrap, one, zero)
+    x = x + q
+    x = wp.where(x >= one, x - one, x)
+    dp = dp + (K * slope) * dx
+    dx = dx + dp
+    return x, q, w, dx, dp
+
+
+@wp.func
+def _renorm(dx: wp.float64, dp: wp.float64, lsum: wp.float64):
+    """Divide a tangent past ``RENORM_THRESHOLD`` by its norm and book the log-stretch."""
+    if wp.abs(dx) > wp.float64(RENORM_THRESHOLD):
+        h = wp.sqrt(dx * dx + dp * dp)
+        lsum = lsum + wp.log(h)
+        dx = dx / h
+        dp = dp / h
+    return dx, dp, lsum
+
+
+# Per-thread lanes; indexed only with unrolled constants, so LLVM keeps them in registers.
+_lanes = wp.types.vector(length=INTERLEAVE, dtype=wp.float64)
+
+
+@wp.kernel
+def advance_map(
+    x: wp.array(dtype=wp.float64),
+    q: wp.array(dtype=wp.float64),
+    winding: wp.array(dtype=wp.int64),
+    dx: wp.array(dtype=wp.float64),
+    dp: wp.array(dtype=wp.float64),
+    lsum: wp.array(dtype=wp.float64),
+    n: int,
+    step0: int,
+    steps: int,
+    K: wp.float64,
+    b1: wp.float64,
+    right: wp.float64,
+    l1: wp.float64,
+    l2: wp.float64,
+    c: wp.float64,
+):
+    """Advance points ``tid + k*stride`` (``k < INTERLEAVE``) by ``steps`` iterations of
+    Eq. (cpem) and of ``DM``, starting at global step ``step0``; ``right = 1 - b2``.
+
+    Lanes past ``n`` compute a copy of point ``n - 1`` and store nothing.
+    """
+    tid = wp.tid()
+    stride = (n + wp.static(INTERLEAVE - 1)) // wp.static(INTERLEAVE)
+    xs = _lanes()
+    qs = _lanes()
+    ws = _lanes()
+    dxs = _lanes()
+    dps = _lanes()
+    ss = _lanes()
+    for k in range(wp.static(INTERLEAVE)):
+        i = wp.min(tid + k * stride, n - 1)
+        xs[k] = x[i]
+        qs[k] = q[i]
+        dxs[k] = dx[i]
+        dps[k] = dp[i]
+        ss[k] = lsum[i]
+    for _s in range(steps):
+        for k in range(wp.static(INTERLEAVE)):
+            xk, qk, wk, dxk, dpk = _step(xs[k], qs[k], ws[k], dxs[k], dps[k], K, b1, right, l1, l2, c)
+            xs[k] = xk
+            qs[k] = qk
+            ws[k] = wk
+            dxs[k] = dxk
+            dps[k] = dpk
+        if ((step0 + _s + 1) & wp.static(RENORM_CHECK_EVERY - 1)) == 0:
+            for k in range(wp.static(INTERLEAVE)):
+                dxk, dpk, sk = _renorm(dxs[k], dps[k], ss[k])
+                dxs[k] = dxk
+                dps[k] = dpk
+                ss[k] = sk
+    for k in range(wp.static(INTERLEAVE)):
+        i = tid + k * stride
+        if i < n:
+            x[i] = xs[k]
+            q[i] = qs[k]
+            dx[i] = dxs[k]
+            dp[i] = dps[k]
+            lsum[i] = ss[k]
+            winding[i] = winding[i] + wp.int64(ws[k])

@@ -1,0 +1,145 @@
+"""Map parameters of the weak-chaos ratchet accelerator.
+
+The map (Eq. cpem of Dana & Roitberg) is the generalized kicked rotor
+
+    p' = p + K f(x),    x' = x + p'  (mod 1),    0 < K < 4,
+
+with the continuous, piecewise-linear, zero-mean force of Eq. (fx)
+
+    f(x) = l1 x          for 0 <= x <= b1,
+           c - x         for b1 < x < 1 - b2,
+           l2 (x - 1)    for 1 - b2 <= x < 1,
+
+whose slopes and offset follow from continuity and the ratchet condition
+``int_0^1 f dx = 0`` (Eq. mmc, derived in Appendix A).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["MapParams", "check_real"]
+
+
+def check_real(name: str, value: object) -> float:
+    """Return ``value`` as a finite float or raise ``ValueError`` naming it."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ValueError(f"{name} = {value!r} is not a real number")
+    as_float = float(value)
+    if not math.isfinite(as_float):
+        raise ValueError(f"{name} = {as_float!r} is not finite")
+    return as_float
+
+
+@dataclass(frozen=True)
+class MapParams:
+    """The three free parameters of the map and the derived force coefficients.
+
+    Parameters
+    ----------
+    K : float
+        Kick strength, ``0 < K < 4`` (the middle branch of ``DM`` is elliptic, Eq. eig).
+    b1, b2 : float
+        Widths of the left and right hyperbolic branches of the force (Eq. fx);
+        ``b1 > 0``, ``b2 > 0``, ``b1 + b2 < 1``.
+
+    Raises
+    ------
+    ValueError
+        If any parameter is not a finite real number in its allowed range; the message
+        names the value and the range.
+    """
+
+    K: float
+    b1: float
+    b2: float
+
+    def __post_init__(self) -> None:
+        K = check_real("K", self.K)
+        b1 = check_real("b1", self.b1)
+        b2 = check_real("b2", self.b2)
+        if not 0.0 < K < 4.0:
+            raise ValueError(f"K = {K!r} is outside the allowed range 0 < K < 4")
+        if not b1 > 0.0:
+            raise ValueError(f"b1 = {b1!r} is outside the allowed range b1 > 0")
+        if not b2 > 0.0:
+            raise ValueError(f"b2 = {b2!r} is outside the allowed range b2 > 0")
+        if not b1 + b2 < 1.0:
+            raise ValueError(f"b1 + b2 = {b1 + b2!r} is outside the allowed range b1 + b2 < 1")
+        object.__setattr__(self, "K", K)
+        object.__setattr__(self, "b1", b1)
+        object.__setattr__(self, "b2", b2)
+
+    # -- derived coefficients, Eq. (mmc) ------------------------------------------------------
+    @property
+    def b(self) -> float:
+        """Total width ``b = b1 + b2`` of the hyperbolic strip B (Eq. B)."""
+        return self.b1 + self.b2
+
+    @property
+    def l1(self) -> float:
+        """Left slope ``l1 = (1-b1)(1-b1-b2) / (b1 (2-b1-b2))``, Eq. (mmc).
+
+        Every factor is a sum of positive terms or ``1 - small``, so the formula keeps full
+        relative precision down to ``b1 ~ 1e-300`` (no cancellation).
+        """
+        b1, b2 = self.b1, self.b2
+        return (1.0 - b1) * (1.0 - b1 - b2) / (b1 * (2.0 - b1 - b2))
+
+    @property
+    def l2(self) -> float:
+        """Right slope ``l2 = (1-b2)(1-b1-b2) / (b2 (2-b1-b2))``, Eq. (mmc)."""
+        b1, b2 = self.b1, self.b2
+        return (1.0 - b2) * (1.0 - b1 - b2) / (b2 * (2.0 - b1 - b2))
+
+    @property
+    def c(self) -> float:
+        """Offset of the middle branch ``c = (1-b2) / (2-b1-b2)``, Eq. (mmc)."""
+        return (1.0 - self.b2) / (2.0 - self.b1 - self.b2)
+
+    @property
+    def alpha(self) -> float:
+        """Rotation angle of the elliptic middle branch, ``2 cos(alpha) = 2 - K`` (Eq. eig)."""
+        return math.acos(1.0 - 0.5 * self.K)
+
+    def as_dict(self) -> dict[str, float]:
+        """Parameters and derived coefficients, as stored in archives and JSON output."""
+        return {"K": self.K, "b1": self.b1, "b2": self.b2, "l1": self.l1, "l2": self.l2, "c": self.c}
+
+    # -- the force, Eq. (fx), in NumPy ----------------------------------------------------------
+    def force(self, x: np.ndarray | float) -> np.ndarray:
+        """Force ``f(x)`` of Eq. (fx) for ``x`` in ``[0, 1)`` (periodically continued).
+
+        Parameters
+        ----------
+        x : array_like, shape (n,)
+            Positions (dimensionless, unit period).
+
+        Returns
+        -------
+        ndarray, shape (n,)
+            ``f(x)``, the same branch selection as the Warp kernel.
+        """
+        x = np.mod(np.asarray(x, dtype=np.float64), 1.0)
+        return np.where(
+            x <= self.b1, self.l1 * x, np.where(x < 1.0 - self.b2, self.c - x, self.l2 * (x - 1.0))
+        )
+
+    def force_slope(self, x: np.ndarray | float) -> np.ndarray:
+        """Slope ``f'(x)`` (``l1``, ``-1`` or ``l2``), the entry of ``DM`` (Eq. fx)."""
+        x = np.mod(np.asarray(x, dtype=np.float64), 1.0)
+        return np.where(x <= self.b1, self.l1, np.where(x < 1.0 - self.b2, -1.0, self.l2))
+
+    def jacobian(self, x: np.ndarray | float) -> np.ndarray:
+        """Tangent map ``DM`` at ``x``, shape ``(..., 2, 2)`` acting on ``(dx, dp)``.
+
+        From ``p' = p + K f(x)`` and ``x' = x + p'``:
+        ``dp' = K f' dx + dp`` and ``dx' = (1 + K f') dx + dp``; ``det DM = 1``.
+        """
+        kf = self.K * self.force_slope(x)
+        one = np.ones_like(kf)
+        return np.stack([np.stack([one + kf, one], -1), np.stack([kf, one], -1)], -2)
