@@ -29,6 +29,7 @@ point per thread and a test every step.
 
 from __future__ import annotations
 
+import ctypes.util
 import os
 
 import warp as wp
@@ -61,11 +62,34 @@ def init_warp() -> None:
     global _initialised
     if _initialised:
         return
-    if not os.environ.get("WARPRATCHET_VERBOSE"):
+    if os.environ.get("WARPRATCHET_VERBOSE"):
+        wp.init()
+    else:
         wp.config.quiet = True
         wp.config.log_level = 30  # logging.WARNING
-    wp.init()
+        if ctypes.util.find_library("cuda") is None:
+            # No CUDA driver on this machine: Warp's native "could not load the CUDA driver"
+            # line says nothing the user can act on, so fd 2 is muted while Warp starts.
+            with _stderr_muted():
+                wp.init()
+        else:
+            wp.init()
     _initialised = True
+
+
+class _stderr_muted:
+    def __enter__(self):
+        import sys
+
+        sys.stderr.flush()
+        self._saved = os.dup(2)
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, 2)
+        os.close(devnull)
+
+    def __exit__(self, *exc):
+        os.dup2(self._saved, 2)
+        os.close(self._saved)
 
 
 def launch_dim(n: int) -> int:
