@@ -146,7 +146,9 @@ class Ensemble:
         x0 = np.asarray(x0, dtype=np.float64)
         p0 = np.asarray(p0, dtype=np.float64)
         if x0.ndim != 1 or x0.shape != p0.shape:
-            raise ValueError(f"x0 and p0 must be 1-D arrays of equal length; got shapes {x0.shape}, {p0.shape}")
+            raise ValueError(
+                f"x0 and p0 must be 1-D arrays of equal length; got shapes {x0.shape}, {p0.shape}"
+            )
         if x0.size == 0:
             raise ValueError("an ensemble needs at least 1 point; got 0")
         if not (np.all(np.isfinite(x0)) and np.all(np.isfinite(p0))):
@@ -169,7 +171,11 @@ class Ensemble:
     def _setup(self, params, state, step, device, threads, sampler, seed) -> None:
         kernels.init_warp()
         self.params = params
-        self.device = str(wp.get_device(device or "cpu"))
+        try:
+            self.device = str(wp.get_device(device or "cpu"))
+        except Exception:
+            available = ", ".join(str(d) for d in wp.get_devices())
+            raise ValueError(f"device = {device!r} is not available (Warp sees: {available})") from None
         if threads is None:
             threads = default_threads()
         if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
@@ -292,7 +298,7 @@ class Ensemble:
             wp.synchronize_device(self.device)
         else:
             bounds = np.linspace(0, self.points, self.threads + 1).astype(int)
-            shards = [(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:]) if hi > lo]
+            shards = [(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
             for future in [pool.submit(self._launch, lo, hi, steps) for lo, hi in shards]:
                 future.result()
         self.step += steps

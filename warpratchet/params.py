@@ -81,25 +81,30 @@ class MapParams:
         return self.b1 + self.b2
 
     @property
+    def _gap(self) -> float:
+        # 1 - b1 - b2 correctly rounded: (1 - b1) - b2 would lose digits as b1 + b2 -> 1.
+        return math.fsum((1.0, -self.b1, -self.b2))
+
+    @property
     def l1(self) -> float:
         """Left slope ``l1 = (1-b1)(1-b1-b2) / (b1 (2-b1-b2))``, Eq. (mmc).
 
-        Every factor is a sum of positive terms or ``1 - small``, so the formula keeps full
-        relative precision down to ``b1 ~ 1e-300`` (no cancellation).
+        Each factor is correctly rounded, so ``l1`` is good to a few ulps from ``b1 ~ 1e-300``
+        (the elliptic-sawtooth limit of Fig. 2) up to ``b1 + b2 -> 1``.
         """
         b1, b2 = self.b1, self.b2
-        return (1.0 - b1) * (1.0 - b1 - b2) / (b1 * (2.0 - b1 - b2))
+        return (1.0 - b1) * self._gap / (b1 * math.fsum((2.0, -b1, -b2)))
 
     @property
     def l2(self) -> float:
         """Right slope ``l2 = (1-b2)(1-b1-b2) / (b2 (2-b1-b2))``, Eq. (mmc)."""
         b1, b2 = self.b1, self.b2
-        return (1.0 - b2) * (1.0 - b1 - b2) / (b2 * (2.0 - b1 - b2))
+        return (1.0 - b2) * self._gap / (b2 * math.fsum((2.0, -b1, -b2)))
 
     @property
     def c(self) -> float:
         """Offset of the middle branch ``c = (1-b2) / (2-b1-b2)``, Eq. (mmc)."""
-        return (1.0 - self.b2) / (2.0 - self.b1 - self.b2)
+        return (1.0 - self.b2) / math.fsum((2.0, -self.b1, -self.b2))
 
     @property
     def alpha(self) -> float:
