@@ -1,0 +1,70 @@
+/*
+ * Plain-C twin of warpratchet.kernels.advance_map, for benchmarks/throughput.py.
+ *
+ * Advances n points of the map of Eq. (cpem), p' = p + K f(x), x' = x + p' (mod 1), with the
+ * force of Eq. (fx) (coefficients l1, l2, c of Eq. (mmc)), and their tangent vectors under DM,
+ * for `steps` iterations starting at global step `step0`. The arithmetic is the kernel's,
+ * operation by operation, so that the end state is bitwise equal to warpratchet's:
+ *
+ *   momentum as a fraction q in [0, 1) plus a winding count (floor of q + K f);
+ *   tangent dp' = dp + (K f') dx, dx' = dx + dp';
+ *   after every global step that is a multiple of RENORM_CHECK_EVERY, a tangent with
+ *   |dx| > RENORM_THRESHOLD is divided by its norm and the log of the norm is booked.
+ *
+ * Built at run time by throughput.py with
+ *   gcc -O3 -march=native -fopenmp -ffp-contract=off -DRENORM_THRESHOLD=... -DRENORM_CHECK_EVERY=...
+ * -ffp-contract=off matters: GNU C contracts a*b + c into an FMA by default, which rounds once
+ * instead of twice and would make the states differ from Warp's in the last bits.
+ *
+ * "Plain": one OpenMP loop over points, the steps inside, no hand vectorisation.
+ */
+#include <math.h>
+#include <stdint.h>
+
+#ifndef RENORM_THRESHOLD
+#error "compile with -DRENORM_THRESHOLD=<warpratchet.kernels.RENORM_THRESHOLD>"
+#endif
+#ifndef RENORM_CHECK_EVERY
+#error "compile with -DRENORM_CHECK_EVERY=<warpratchet.kernels.RENORM_CHECK_EVERY>"
+#endif
+
+void advance_map(int64_t n, int64_t step0, int64_t steps, double K, double b1, double right, double l1,
+                 double l2, double c, double *x, double *q, int64_t *winding, double *dx, double *dp,
+                 double *lsum, int threads)
+{
+#pragma omp parallel for schedule(static) num_threads(threads)
+    for (int64_t i = 0; i < n; i++) {
+        double xi = x[i], qi = q[i], dxi = dx[i], dpi = dp[i], si = lsum[i];
+        double w = 0.0; /* windings gained in this call; exact below 2^53 */
+        for (int64_t s = 0; s < steps; s++) {
+            const int in_left = xi <= b1;
+            const int in_middle = xi < right;
+            /* Eq. (fx) and its slope f' */
+            const double f = in_left ? l1 * xi : (in_middle ? c - xi : l2 * (xi - 1.0));
+            const double slope = in_left ? l1 : (in_middle ? -1.0 : l2);
+            const double t = qi + K * f;
+            const double fl = floor(t);
+            qi = t - fl;
+            /* t just below an integer can round t - floor(t) up to exactly 1: fold it back */
+            const int wrap = qi >= 1.0;
+            qi = wrap ? 0.0 : qi;
+            w = w + fl + (wrap ? 1.0 : 0.0);
+            xi = xi + qi;
+            xi = xi >= 1.0 ? xi - 1.0 : xi;
+            dpi = dpi + (K * slope) * dxi;
+            dxi = dxi + dpi;
+            if ((uint64_t)(step0 + s + 1) % RENORM_CHECK_EVERY == 0 && fabs(dxi) > RENORM_THRESHOLD) {
+                const double h = sqrt(dxi * dxi + dpi * dpi);
+                si = si + log(h);
+                dxi = dxi / h;
+                dpi = dpi / h;
+            }
+        }
+        x[i] = xi;
+        q[i] = qi;
+        dx[i] = dxi;
+        dp[i] = dpi;
+        lsum[i] = si;
+        winding[i] = winding[i] + (int64_t)w;
+    }
+}
