@@ -38,6 +38,7 @@ __all__ = [
     "sample_strip",
     "sample_torus",
     "sample_grid",
+    "grid_nodes",
     "default_threads",
     "default_chunk_steps",
 ]
@@ -47,9 +48,13 @@ STATE_FIELDS = ("x", "q", "winding", "p0", "dx", "dp", "log_stretch")
 #: Initial-condition samplers by name (``"user"`` is an ensemble built from arrays).
 SAMPLERS = ("strip", "torus", "grid")
 
-#: Grid offset in units of the spacing: the golden-ratio fraction keeps grid points off the
-#: kinks x = b1 and x = 1 - b2 for any rational b1, b2 with small denominators.
+#: Grid offsets in units of the spacing. The golden-ratio fraction on the x axis keeps nodes
+#: off the kinks x = b1 and x = 1 - b2 for any b1, b2 with small denominators. The p axis has
+#: a different irrational offset: with one offset on both axes p - x is a multiple of the
+#: spacing, and nodes then sit exactly on the slope-1 edges p = x - b1 + k of Eq. (B1e)
+#: (0.1% of the nodes at b1 = 0.1, G = 450).
 GRID_OFFSET = (math.sqrt(5.0) - 1.0) / 2.0
+GRID_P_OFFSET = math.sqrt(2.0) - 1.0
 
 
 # -- initial conditions ---------------------------------------------------------------------
@@ -68,18 +73,27 @@ def sample_torus(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarr
     return rng.random(n), rng.random(n)
 
 
-def sample_grid(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """A regular ``G x G`` grid on the torus with ``G = isqrt(n)`` (so ``G^2 <= n`` points).
+def grid_nodes(side: int) -> tuple[np.ndarray, np.ndarray]:
+    """A ``side x side`` lattice on the torus, shape ``(side^2,)`` each.
 
-    Nodes sit at ``((i + o)/G, (j + o)/G)`` with the irrational offset ``o`` of
-    :data:`GRID_OFFSET`, so no node lands on a kink of the force.
+    Nodes sit at ``((i + o_x)/G, (j + o_p)/G)`` with the irrational offsets :data:`GRID_OFFSET`
+    and :data:`GRID_P_OFFSET`, so no node lands on a kink of the force or on the sloped edges of
+    the regions of Appendix B. Row-major in ``p``: node ``(i, j)`` is element ``j * G + i``.
     """
+    if isinstance(side, bool) or not isinstance(side, (int, np.integer)) or side < 1:
+        raise ValueError(f"grid = {side!r} is outside the allowed range grid >= 1 (an integer)")
+    x_axis = (np.arange(side) + GRID_OFFSET) / side
+    p_axis = (np.arange(side) + GRID_P_OFFSET) / side
+    x, p = np.meshgrid(x_axis, p_axis, indexing="xy")
+    return x.ravel(), p.ravel()
+
+
+def sample_grid(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The :func:`grid_nodes` lattice with ``G = isqrt(n)`` (so ``G^2 <= n`` points)."""
     side = math.isqrt(n)
     if side < 1:
         raise ValueError(f"points = {n!r} is too few for a grid (need at least 1)")
-    axis = (np.arange(side) + GRID_OFFSET) / side
-    x, p = np.meshgrid(axis, axis, indexing="xy")
-    return x.ravel(), p.ravel()
+    return grid_nodes(side)
 
 
 def default_threads() -> int:
