@@ -8,6 +8,7 @@ Eq. (fx). Start with :class:`MapParams`, :mod:`warpratchet.theory`, :class:`Ense
 from importlib.metadata import PackageNotFoundError, version
 
 from . import theory
+from .archive import open_archive
 from .ensemble import Ensemble, Observer
 from .observables import acceleration, chaotic_mask, lyapunov, summarize
 from .params import MapParams
@@ -26,5 +27,6 @@ __all__ = [
     "lyapunov",
     "chaotic_mask",
     "summarize",
+    "open_archive",
     "__version__",
 ]

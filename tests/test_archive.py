@@ -1,0 +1,551 @@
+"""HDF5 run archives: layout, exact restart, refusal of bad input, truncation and corruption.
+
+The SIGKILL acceptance test is in test_archive_kill.py.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import warnings
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from warpratchet import Ensemble, MapParams, Observer, open_archive, summarize
+from warpratchet.archive import (
+    SERIES_FIELDS,
+    ArchiveError,
+    ArchiveSink,
+    ArchiveWarning,
+    run_to,
+    schedule,
+)
+from warpratchet.cli import main
+from warpratchet.ensemble import STATE_FIELDS
+
+PARAMS = MapParams(3.0, 0.1, 0.01)
+POINTS = 300
+SEED = 5
+DOC = Path(__file__).resolve().parents[1] / "docs" / "archive.md"
+#: Snapshots and several checkpoints in a 1000-step run.
+SCHEDULE = {"snapshot_every": 200, "snapshot_points": 40, "checkpoint_every": 400, "chunk_steps": 100}
+#: Series columns that depend on the machine, not on the dynamics.
+CLOCKS = ("wall_time", "unix_time")
+
+
+class Capture(Observer):
+    """Copies of the state after every chunk, keyed by step (the reference for checkpoints)."""
+
+    def __init__(self) -> None:
+        self.states: dict[int, dict[str, np.ndarray]] = {}
+
+    def begin(self, ensemble, target_step):
+        self.states[ensemble.step] = ensemble.state()
+
+    def after_chunk(self, ensemble, seconds):
+        self.states[ensemble.step] = ensemble.state()
+
+
+def fresh() -> Ensemble:
+    return Ensemble.sample(PARAMS, POINTS, "strip", SEED)
+
+
+def record(path, steps, *, run_steps=None, **kw):
+    """An archived run of ``steps`` steps; returns the ensemble and the captured states."""
+    ens = fresh()
+    cap = Capture()
+    with ArchiveSink(path, ens, **kw) as sink:
+        ens.run(steps, [cap, sink], chunk_steps=sink.chunk_steps)
+    return ens, cap.states
+
+
+def same_state(a: dict, b: dict) -> bool:
+    return all(np.array_equal(a[k], b[k]) for k in STATE_FIELDS)
+
+
+def same_series(a: dict, b: dict) -> bool:
+    return all(np.array_equal(a[k], b[k], equal_nan=True) for k in SERIES_FIELDS if k not in CLOCKS)
+
+
+def cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", "warpratchet.cli", *args], capture_output=True, text=True, timeout=120
+    )
+
+
+def assert_one_line_error(proc: subprocess.CompletedProcess) -> None:
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warpratchet: error:"), proc.stderr
+
+
+@pytest.fixture(scope="module")
+def archived(tmp_path_factory):
+    """A finished archive with snapshots and several checkpoints, plus the states of its run."""
+    path = tmp_path_factory.mktemp("arc") / "run.h5"
+    ens, states = record(path, 1000, **SCHEDULE)
+    return path, ens, states
+
+
+@pytest.fixture(scope="module")
+def killed(tmp_path_factory, archived):
+    """The same run as a killed writer leaves it: still marked open for SWMR writing."""
+    folder = tmp_path_factory.mktemp("killed")
+    ens = fresh()
+    with ArchiveSink(folder / "live.h5", ens, **SCHEDULE) as sink:
+        ens.run(1000, [sink], chunk_steps=sink.chunk_steps)
+        shutil.copy(folder / "live.h5", folder / "run.h5")  # the bytes on disk of a live archive
+    with pytest.raises(OSError, match="already open for write"):
+        h5py.File(folder / "run.h5", "r")
+    return folder / "run.h5", ens, archived[2]
+
+
+# -- contents and exact restart -------------------------------------------------------------------
+def test_archive_holds_the_run(archived):
+    path, ens, states = archived
+    with open_archive(path) as arc:
+        assert arc.params == PARAMS
+        s = arc.settings
+        assert (s["points"], s["sampler"], s["seed"], s["chunk_steps"]) == (POINTS, "strip", SEED, 100)
+        assert (s["checkpoint_every"], s["snapshot_every"], s["snapshot_points"]) == (400, 200, 40)
+        assert s["threshold"] is None and s["dtype"] == "float64" and s["renorm_check_every"] == 8
+        assert {"warpratchet", "warp", "numpy", "h5py"} <= set(arc.versions)
+        assert re.fullmatch(r"\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\+00:00", arc.created)
+        series = arc.series
+        assert list(series["step"]) == list(range(100, 1001, 100))
+        for row, step in enumerate(series["step"]):  # each row is the summary of its chunk
+            expect = summarize(states[int(step)], int(step))
+            assert series["A"][row] == expect.A and series["A_stderr"][row] == expect.A_stderr
+            assert series["lyapunov"][row] == expect.lyapunov
+            assert series["chaotic_fraction"][row] == expect.chaotic_fraction
+        assert np.all(series["wall_time"] > 0)
+        snaps = arc.snapshots
+        assert list(snaps.steps) == [200, 400, 600, 800, 1000]
+        assert snaps.x.shape == snaps.p.shape == snaps.ftle.shape == snaps.A.shape == (5, 40)
+        assert np.all(np.diff(snaps.indices) > 0) and snaps.indices[-1] < POINTS
+        for row, step in enumerate(snaps.steps):
+            st = states[int(step)]
+            assert np.array_equal(snaps.x[row], st["x"][snaps.indices])
+            assert np.array_equal(snaps.p[row], st["q"][snaps.indices])
+        assert np.all((snaps.p >= 0) & (snaps.p < 1))
+        assert arc.checkpoint_step == 1000
+        restored = arc.ensemble(threads=1)
+        assert restored.step == 1000 and same_state(restored.state(), ens.state())
+        assert same_state(arc.initial, states[0])
+
+
+def test_snapshots_empty_without_schedule(tmp_path):
+    record(tmp_path / "a.h5", 50, chunk_steps=25)
+    with open_archive(tmp_path / "a.h5") as arc:
+        snaps = arc.snapshots
+        assert len(snaps) == 0 and snaps.x.shape == (0, 0) and snaps.indices.size == 0
+        assert arc.rows == 2 and arc.checkpoint_step == 50
+
+
+def test_resume_matches_an_uninterrupted_run(tmp_path):
+    """A run stopped at a step off the chunk grid, resumed twice: same state, rows and snapshots."""
+    ref_path = tmp_path / "ref.h5"
+    ref, _ = record(
+        ref_path, 2500, snapshot_every=200, snapshot_points=30, checkpoint_every=400, chunk_steps=100
+    )
+    path = tmp_path / "run.h5"
+    record(path, 1050, snapshot_every=200, snapshot_points=30, checkpoint_every=400, chunk_steps=100)
+    for total in (1800, 2500):
+        sink, ens = ArchiveSink.resume(path, threads=1)
+        with sink:
+            run_to(ens, total, [sink], sink.chunk_steps)
+    assert ens.step == ref.step and same_state(ens.state(), ref.state())
+    with open_archive(path) as arc, open_archive(ref_path) as want:
+        steps = list(arc.series["step"])
+        assert steps == sorted(set(list(range(100, 1001, 100)) + [1050] + list(range(1100, 2501, 100))))
+        ref_rows = {int(s): i for i, s in enumerate(want.series["step"])}
+        for name in SERIES_FIELDS:
+            if name not in CLOCKS:
+                got = [arc.series[name][i] for i, s in enumerate(steps) if s != 1050]
+                assert np.array_equal(got, want.series[name][[ref_rows[s] for s in steps if s != 1050]])
+        assert np.array_equal(arc.snapshots.steps, want.snapshots.steps)
+        assert np.array_equal(arc.snapshots.x, want.snapshots.x)
+        assert arc.checkpoint_step == 2500 and arc.created != ""
+
+
+def test_interrupted_run_keeps_last_periodic_checkpoint(tmp_path):
+    """An exception mid-run: no end checkpoint (the state may be mid-chunk), rows up to it stay."""
+
+    class Boom(Observer):
+        def after_chunk(self, ensemble, seconds):
+            if ensemble.step == 700:
+                raise KeyboardInterrupt
+
+    path = tmp_path / "run.h5"
+    ens = fresh()
+    with ArchiveSink(path, ens, checkpoint_every=300, chunk_steps=100) as sink:
+        with pytest.raises(KeyboardInterrupt):
+            ens.run(1000, [sink, Boom()], chunk_steps=100)
+    with open_archive(path) as arc:
+        assert arc.checkpoint_step == 600 and list(arc.series["step"]) == list(range(100, 701, 100))
+    sink, ens = ArchiveSink.resume(path)
+    with sink:
+        assert ens.step == 600 and sink.checkpoint_step == 600
+        run_to(ens, 1000, [sink], sink.chunk_steps)
+    ref = fresh().run(1000)
+    assert same_state(ens.state(), ref.state())
+    with open_archive(path) as arc:
+        assert list(arc.series["step"]) == list(range(100, 1001, 100))
+
+
+def test_no_checkpoint_yet_restarts_from_initial_state(tmp_path):
+    path = tmp_path / "run.h5"
+    ens = fresh()
+    ArchiveSink(path, ens, chunk_steps=100).close()
+    with open_archive(path) as arc:
+        assert arc.checkpoint_step == 0 and arc.rows == 0 and arc.latest() is None
+        assert same_state(arc.ensemble().state(), fresh().state())
+
+
+# -- schedule and refusals -------------------------------------------------------------------------
+def test_schedule_lands_chunk_ends_on_snapshots_and_checkpoints():
+    assert schedule(10_000) == (25_000, 200_000)
+    assert schedule(10_000, snapshot_every=1000) == (1000, 8000)
+    assert schedule(10**6, snapshot_every=6000, checkpoint_every=9000) == (1000, 9000)
+    assert schedule(100, chunk_steps=50, snapshot_every=200, checkpoint_every=500) == (50, 500)
+    with pytest.raises(ValueError, match="chunk_steps = 300 must divide checkpoint_every = 1000"):
+        schedule(100, chunk_steps=300, checkpoint_every=1000)
+    with pytest.raises(ValueError, match="only allow chunks of 1 steps"):
+        schedule(10**6, snapshot_every=10_007)
+    with pytest.raises(ValueError, match="snapshot_every = -1"):
+        schedule(100, snapshot_every=-1)
+
+
+def test_refuses_to_overwrite_and_force_replaces(tmp_path):
+    path = tmp_path / "precious.h5"
+    path.write_bytes(b"user data")
+    with pytest.raises(ArchiveError, match="exists; refusing to overwrite"):
+        ArchiveSink(path, fresh())
+    assert path.read_bytes() == b"user data"
+    proc = cli(
+        "run",
+        "--K",
+        "3",
+        "--b1",
+        "0.1",
+        "--b2",
+        "0.01",
+        "--points",
+        "10",
+        "--steps",
+        "10",
+        "--out",
+        str(path),
+        "--quiet",
+    )
+    assert_one_line_error(proc)
+    assert "--force" in proc.stderr and path.read_bytes() == b"user data"
+    ArchiveSink(path, fresh(), force=True).close()
+    with open_archive(path) as arc:
+        assert arc.points == POINTS
+    assert [p.name for p in tmp_path.iterdir()] == ["precious.h5"]  # no temporary left behind
+
+
+def test_file_in_use_is_refused(tmp_path):
+    path = tmp_path / "run.h5"
+    with ArchiveSink(path, fresh(), chunk_steps=100):
+        with pytest.raises(ArchiveError, match="in use by another process"):
+            ArchiveSink.resume(path)
+        with pytest.raises(ArchiveError, match="in use by another process"):
+            ArchiveSink(path, fresh(), force=True)
+    ArchiveSink.resume(path)[0].close()  # free again once the writer closed it
+
+
+def test_incompatible_format_version_is_refused(tmp_path, archived):
+    path = tmp_path / "future.h5"
+    shutil.copy(archived[0], path)
+    with h5py.File(path, "r+") as f:
+        f.attrs["format_version"] = 2
+    with pytest.raises(ArchiveError, match="format version 2 is not supported"):
+        open_archive(path)
+    assert_one_line_error(cli("resume", str(path), "--steps", "5000"))
+    with pytest.raises(ArchiveError, match="not a warpratchet archive"):
+        with h5py.File(tmp_path / "other.h5", "w") as f:
+            f["x"] = 1
+        open_archive(tmp_path / "other.h5")
+    with pytest.raises(ArchiveError, match="no such archive"):
+        open_archive(tmp_path / "missing.h5")
+
+
+# -- the documented layout is the written one -----------------------------------------------------
+def _documented_names() -> set[str]:
+    names = set()
+    for line in DOC.read_text().splitlines():
+        m = re.match(r"\|\s*`(/[^`]*)`\s*\|", line)
+        if m:
+            names.add(m.group(1))
+    return names
+
+
+def _written_names(path) -> set[str]:
+    names = set()
+    with h5py.File(path, "r") as f:
+
+        def add(name, obj):
+            names.add(f"/{name}")
+            names.update(f"/{name}@{key}" for key in obj.attrs)
+
+        names.update(f"/@{key}" for key in f.attrs)
+        f.visititems(add)
+    return names
+
+
+def test_docs_match_the_file(archived):
+    documented = _documented_names()
+    assert len(documented) > 60  # the table was found and parsed
+    written = _written_names(archived[0])
+    assert documented - written == set(), "documented but not written"
+    assert written - documented == set(), "written but not documented"
+    text = DOC.read_text()
+    assert "warpratchet-archive" in text and "version 1" in text
+
+
+# -- truncated and corrupted files -----------------------------------------------------------------
+def _read_all(path):
+    """Everything a reader can get from an archive (raises ArchiveError if it cannot)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ArchiveWarning)
+        with open_archive(path) as arc:
+            info = arc.info()
+            out = {
+                "series": arc.series,
+                "snapshots": arc.snapshots,
+                "initial": arc.initial,
+                "checkpoint": arc.checkpoint(),
+                "meta": (arc.params, arc.settings, arc.versions, arc.created, info["rows"]),
+            }
+    return out, [str(w.message) for w in caught]
+
+
+def _flip(src, dst, offset, count=8):
+    shutil.copy(src, dst)
+    with open(dst, "r+b") as fh:
+        fh.seek(offset)
+        data = bytearray(fh.read(count))
+        fh.seek(offset)
+        fh.write(bytes(b ^ 0xA5 for b in data))
+
+
+def test_truncated_file_is_a_clear_error(tmp_path, archived):
+    path = tmp_path / "cut.h5"
+    data = Path(archived[0]).read_bytes()
+    path.write_bytes(data[: len(data) // 2])
+    with pytest.raises(ArchiveError, match="truncated file.*the file is truncated or corrupted"):
+        _read_all(path)
+    assert_one_line_error(cli("inspect", str(path)))
+    assert_one_line_error(cli("resume", str(path), "--steps", "5000", "--quiet"))
+    assert Path(path).read_bytes() == data[: len(data) // 2]  # a failed resume touches nothing
+
+
+def test_truncated_file_of_a_killed_writer_errors_or_recovers_truthfully(tmp_path, killed):
+    """HDF5 skips its size check in SWMR mode: what is missing must still never pass unnoticed."""
+    src, _, states = killed
+    data = Path(src).read_bytes()
+    for fraction in (0.5, 0.75, 0.9):
+        path = tmp_path / f"cut{fraction}.h5"
+        path.write_bytes(data[: int(len(data) * fraction)])
+        try:
+            got, notes = _read_all(path)
+        except ArchiveError as exc:
+            assert "truncated or corrupted" in str(exc)
+            continue
+        state, step = got["checkpoint"]
+        assert notes and "recovered" in notes[0] and step < 1000
+        assert same_state(state, states[step])
+    proc = cli("inspect", str(tmp_path / "cut0.5.h5"))
+    assert "Traceback" not in proc.stderr
+    if proc.returncode == 0:
+        assert "warpratchet: warning:" in proc.stderr and "recovered" in proc.stderr
+    else:
+        assert_one_line_error(proc)
+
+
+@pytest.mark.parametrize("which", ["archived", "killed"])
+def test_flipped_bytes_never_give_silent_wrong_data(tmp_path, request, which):
+    """Byte flips anywhere: a clear error, the same data, or an older checkpoint that is right."""
+    src, _, states = request.getfixturevalue(which)
+    want, _ = _read_all(src)
+    size = os.path.getsize(src)
+    rng = np.random.default_rng(11)
+    offsets = [size // 2, *rng.integers(0, size - 8, 30)]
+    outcomes = []
+    for i, offset in enumerate(offsets):
+        path = tmp_path / f"flip{i}.h5"
+        _flip(src, path, int(offset))
+        try:
+            got, notes = _read_all(path)
+        except ArchiveError:
+            outcomes.append("error")
+            continue
+        state, step = got["checkpoint"]
+        assert same_state(state, states[step]), f"offset {offset}: checkpoint differs from the run at {step}"
+        assert (step == 1000) == (not notes), f"offset {offset}: recovery {notes} must be announced"
+        assert same_series(got["series"], want["series"]), f"offset {offset}: series differ"
+        for name in ("steps", "indices", "x", "p", "ftle", "A"):
+            assert np.array_equal(getattr(got["snapshots"], name), getattr(want["snapshots"], name))
+        assert same_state(got["initial"], want["initial"]) and got["meta"] == want["meta"]
+        outcomes.append("recovered" if notes else "same")
+    assert "error" in outcomes  # flips do hit data
+
+
+def test_flipped_bytes_in_the_middle_via_cli(tmp_path, archived):
+    path = tmp_path / "mid.h5"
+    size = os.path.getsize(archived[0])
+    _flip(archived[0], path, size // 2, 16)
+    for args in (
+        ("inspect", str(path), "--json"),
+        ("resume", str(path), "--steps", "1200", "--quiet", "--json"),
+    ):
+        proc = cli(*args)
+        assert "Traceback" not in proc.stderr
+        if proc.returncode == 2:
+            assert_one_line_error(proc)
+        else:
+            assert proc.returncode == 0, proc.stderr
+    if proc.returncode == 0:  # resumed: from a checkpoint that verified, so exactly the true run
+        report = json.loads(proc.stdout)
+        ref = fresh().run(1200)
+        with open_archive(path) as arc:
+            assert report["steps"] == 1200 and same_state(arc.ensemble().state(), ref.state())
+
+
+def test_damaged_checkpoint_falls_back_to_the_previous_one(tmp_path, archived):
+    src, _, states = archived
+    path = tmp_path / "bad.h5"
+    shutil.copy(src, path)
+    with h5py.File(path, "r") as f:  # locate the newest slot's data on disk
+        slot = ("a", "b")[int(f["checkpoint/current"][0])]
+        older = int(f[f"checkpoint/{'b' if slot == 'a' else 'a'}/step"][0])
+        offset = f[f"checkpoint/{slot}/q"].id.get_chunk_info(0).byte_offset
+    assert older == 800
+    _flip(path, tmp_path / "tmp.h5", offset + 100)
+    os.replace(tmp_path / "tmp.h5", path)
+    with pytest.warns(
+        ArchiveWarning, match="checkpoint at step 1000 is unreadable.*recovered the checkpoint at step 800"
+    ):
+        with open_archive(path) as arc:
+            ens = arc.ensemble()
+    assert ens.step == 800 and same_state(ens.state(), states[800])
+    proc = cli("resume", str(path), "--steps", "1500", "--quiet", "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert "warpratchet: warning:" in proc.stderr and "step 800" in proc.stderr
+    assert json.loads(proc.stdout)["steps"] == 1500
+    ref = fresh().run(1500)
+    with open_archive(path) as arc:
+        assert same_state(arc.ensemble().state(), ref.state())
+        assert list(arc.series["step"]) == list(range(100, 1501, 100))
+
+
+# -- command line ---------------------------------------------------------------------------------
+def test_cli_run_resume_inspect(tmp_path, capsys):
+    path = str(tmp_path / "cli.h5")
+    base = ["--K", "3", "--b1", "0.1", "--b2", "0.01", "--points", "200", "--seed", "4"]
+    assert (
+        main(
+            [
+                "run",
+                *base,
+                "--steps",
+                "600",
+                "--out",
+                path,
+                "--snapshot-every",
+                "200",
+                "--snapshot-points",
+                "20",
+                "--checkpoint-every",
+                "400",
+                "--quiet",
+                "--json",
+            ]
+        )
+        == 0
+    )
+    first = json.loads(capsys.readouterr().out)
+    assert first["archive"] == path and first["steps"] == 600
+    assert main(["resume", path, "--steps", "1000", "--K", "3", "--points", "200", "--quiet", "--json"]) == 0
+    second = json.loads(capsys.readouterr().out)
+    assert set(second) == set(first) and second["steps"] == 1000 and second["seed"] == 4
+    ref = Ensemble.sample(PARAMS, 200, "strip", 4).run(1000)
+    s = summarize(ref.state(), 1000)
+    assert second["A"] == s.A and second["lyapunov"] == s.lyapunov
+    assert main(["inspect", path, "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["checkpoint_step"] == 1000 and info["rows"] == 5 and info["snapshots"] == 5
+    assert info["latest"]["A"] == s.A and info["params"]["K"] == 3.0 and info["format_version"] == 1
+    assert main(["inspect", path]) == 0
+    text = capsys.readouterr().out
+    assert "checkpoint at step 1000" in text and "K = 3.0" in text
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["resume", "{path}", "--steps", "600"], "not beyond the archive's checkpoint at step 600"),
+        (
+            ["resume", "{path}", "--steps", "900", "--K", "2.5"],
+            "--K 2.5 disagrees with the archive's K = 3.0",
+        ),
+        (["resume", "{path}", "--steps", "900", "--seed", "1"], "--seed 1 disagrees"),
+        (["resume", "{missing}", "--steps", "900"], "no such archive"),
+        (
+            ["run", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--snapshot-every", "5"],
+            "--snapshot-every needs --out",
+        ),
+        (
+            [
+                "run",
+                "--K",
+                "3",
+                "--b1",
+                "0.1",
+                "--b2",
+                "0.01",
+                "--out",
+                "{new}",
+                "--chunk-steps",
+                "300",
+                "--checkpoint-every",
+                "1000",
+            ],
+            "chunk_steps = 300 must divide checkpoint_every = 1000",
+        ),
+        (["inspect", "{missing}"], "no such archive"),
+    ],
+)
+def test_cli_refusals(tmp_path, capsys, args, message):
+    path = tmp_path / "r.h5"
+    record(path, 600, chunk_steps=200)
+    before = path.read_bytes()
+    fill = {"path": str(path), "missing": str(tmp_path / "nope.h5"), "new": str(tmp_path / "new.h5")}
+    assert main([a.format(**fill) for a in args]) == 2
+    err = capsys.readouterr().err
+    assert message in err and len(err.strip().splitlines()) == 1
+    assert path.read_bytes() == before and not (tmp_path / "new.h5").exists()
+
+
+def test_overhead_benchmark_runs_and_archiving_changes_nothing():
+    """Smoke test of benchmarks/archive_overhead.py --quick (structure only, no timing assertions)."""
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / "archive_overhead.py"
+    proc = subprocess.run(
+        [sys.executable, str(script), "--quick", "--json"], capture_output=True, text=True, timeout=300
+    )
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads(proc.stdout)
+    assert report["quick"] and report["budget"] == 1.05 and len(report["cases"]) == 2
+    for case in report["cases"]:
+        assert case["identical"] and case["rows"] >= 1 and case["file_bytes"] > 0
+        assert case["wall_ratio"] > 0 and 0 < case["sink_share_of_kernel"]

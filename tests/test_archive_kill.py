@@ -1,0 +1,185 @@
+"""Acceptance test of issue 3: SIGKILL a CLI run at random moments, resume, compare bit for bit.
+
+One archive is driven to completion by ``warpratchet run --out`` and then ``warpratchet
+resume``, each process killed with SIGKILL at a random moment (seeded), until at least five kills
+have landed on a live process. Kills come at random progress points (the test reads the archive
+while the CLI writes it, in SWMR mode, and kills once it has grown past a random row count, plus
+a random delay so that the kill falls anywhere inside a chunk or checkpoint) and at random times
+after launch (imports, file creation, the rebuild of ``resume``). After every kill the archive
+must open, keep every row a reader saw before the kill, hold rows, snapshots and a checkpoint
+identical to those of an uninterrupted run, and the final resumed state must equal that run's
+bit for bit.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from warpratchet import Ensemble, MapParams, Observer
+from warpratchet.archive import SERIES_FIELDS, SNAPSHOT_FIELDS, Archive, ArchiveSink
+from warpratchet.ensemble import STATE_FIELDS
+
+K, B1, B2 = 3.0, 0.1, 0.01
+POINTS, SEED, STEPS = 2000, 7, 60_000
+CHUNK, CHECKPOINT, SNAPSHOT, SNAPSHOT_POINTS = 100, 500, 1000, 64
+MIN_KILLS = 5
+CLOCKS = ("wall_time", "unix_time")
+
+
+class Capture(Observer):
+    """The state at every checkpoint step of the reference run."""
+
+    def __init__(self) -> None:
+        self.states: dict[int, dict[str, np.ndarray]] = {}
+
+    def begin(self, ensemble, target_step):
+        self.states[ensemble.step] = ensemble.state()
+
+    def after_chunk(self, ensemble, seconds):
+        if ensemble.step % CHECKPOINT == 0 or ensemble.step == STEPS:
+            self.states[ensemble.step] = ensemble.state()
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The uninterrupted run, archived with the same settings: final state, checkpoints, rows."""
+    path = tmp_path_factory.mktemp("ref") / "ref.h5"
+    ens = Ensemble.sample(MapParams(K, B1, B2), POINTS, "strip", SEED)
+    cap = Capture()
+    with ArchiveSink(
+        path,
+        ens,
+        snapshot_every=SNAPSHOT,
+        snapshot_points=SNAPSHOT_POINTS,
+        checkpoint_every=CHECKPOINT,
+        chunk_steps=CHUNK,
+    ) as sink:
+        ens.run(STEPS, [cap, sink], chunk_steps=sink.chunk_steps)
+    with Archive(path) as arc:
+        series, snaps = arc.series, arc.snapshots
+    return ens, cap.states, series, snaps
+
+
+def _launch(path: str) -> subprocess.Popen:
+    common = ["--quiet", "--json"]
+    if os.path.exists(path):
+        args = ["resume", path, "--steps", str(STEPS), *common]
+    else:
+        args = [
+            "run",
+            "--K", str(K), "--b1", str(B1), "--b2", str(B2),
+            "--points", str(POINTS), "--seed", str(SEED), "--steps", str(STEPS),
+            "--chunk-steps", str(CHUNK), "--checkpoint-every", str(CHECKPOINT),
+            "--snapshot-every", str(SNAPSHOT), "--snapshot-points", str(SNAPSHOT_POINTS),
+            "--out", path, *common,
+        ]  # fmt: skip
+    return subprocess.Popen(
+        [sys.executable, "-m", "warpratchet.cli", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
+def _peek(path: str) -> tuple[int, int] | None:
+    """(inode, valid rows) as a concurrent SWMR reader sees them; None before the file exists.
+
+    ``locking=False`` so that the reader never makes a starting ``resume`` think the file is in
+    use (a real reader holds a shared lock, and ``resume`` would refuse to start).
+    """
+    try:
+        inode = os.stat(path).st_ino
+    except FileNotFoundError:
+        return None
+    with Archive(path, locking=False) as arc:
+        return inode, arc.rows
+
+
+def _check_archive(path: str, reference, seen: tuple[int, int] | None) -> int:
+    """The archive after a kill: opens, keeps what a reader saw, and agrees with the reference."""
+    _, states, ref_series, ref_snaps = reference
+    with Archive(path) as arc:
+        series, snaps = arc.series, arc.snapshots
+        rows = series["step"].size
+        if seen is not None and seen[0] == os.stat(path).st_ino:
+            assert rows >= seen[1], f"{seen[1]} rows were readable before the kill, {rows} after"
+        assert np.array_equal(series["step"], ref_series["step"][:rows])
+        for name in SERIES_FIELDS:
+            if name not in CLOCKS:
+                assert np.array_equal(series[name], ref_series[name][:rows], equal_nan=True), name
+        assert np.array_equal(snaps.indices, ref_snaps.indices)
+        count = snaps.steps.size
+        for name in ("steps", *SNAPSHOT_FIELDS):
+            assert np.array_equal(getattr(snaps, name), getattr(ref_snaps, name)[:count]), name
+        ens = arc.ensemble(threads=1)
+        assert ens.step == arc.checkpoint_step and ens.step in states
+        assert all(np.array_equal(ens.array(k), states[ens.step][k]) for k in STATE_FIELDS)
+        assert rows == 0 or ens.step <= series["step"][-1]
+        return rows
+
+
+def test_sigkill_at_random_moments_then_resume_is_bitwise_identical(tmp_path, reference):
+    rng = np.random.default_rng(20240603)
+    path = str(tmp_path / "run.h5")
+    kills, launches, peeked_mid_run = 0, 0, False
+    while kills < MIN_KILLS:
+        launches += 1
+        assert launches <= 3 * MIN_KILLS, f"only {kills} of {launches} launches could be killed mid-run"
+        if os.path.exists(path):
+            with Archive(path) as arc:
+                assert arc.checkpoint_step < STEPS, f"the run completed after {kills} kills: raise STEPS"
+        proc = _launch(path)
+        start = time.monotonic()
+        seen = None
+        if kills % 3 == 2:  # a random moment after launch: startup, file creation or rebuild
+            deadline = start + rng.uniform(0.05, 1.2)
+            while time.monotonic() < deadline and proc.poll() is None:
+                time.sleep(0.01)
+            seen = _peek(path)
+        else:  # a random point of progress, then a random instant inside a chunk
+            base = _peek(path)
+            target = (0 if base is None else base[1]) + int(rng.integers(2, 60))
+            while proc.poll() is None and time.monotonic() - start < 60:
+                seen = _peek(path)
+                if seen is not None and seen[1] >= target:
+                    break
+                time.sleep(0.003)
+            time.sleep(rng.uniform(0.0, 0.004))
+        if proc.poll() is None:
+            proc.send_signal(signal.SIGKILL)
+        out, err = proc.communicate(timeout=60)
+        if proc.returncode == -signal.SIGKILL:
+            kills += 1
+        else:
+            assert proc.returncode == 0, err  # finished before the kill: it must have succeeded
+        if not os.path.exists(path):
+            continue  # killed before the archive was published: nothing to check
+        rows = _check_archive(path, reference, seen)
+        print(f"launch {launches}: exit {proc.returncode}, reader saw {seen}, {rows} rows after")
+        peeked_mid_run |= seen is not None and 0 < seen[1] < STEPS // CHUNK
+    assert peeked_mid_run, "the reader never saw the archive part-way through a run"
+
+    ref_ens = reference[0]
+    with Archive(path) as arc:
+        done = arc.checkpoint_step == STEPS
+    if not done:
+        proc = _launch(path)
+        out, err = proc.communicate(timeout=120)
+        assert proc.returncode == 0, err
+        assert json.loads(out)["steps"] == STEPS
+    _check_archive(path, reference, None)
+    with Archive(path) as arc:
+        final = arc.ensemble(threads=1)
+        assert arc.rows == STEPS // CHUNK and arc.checkpoint_step == STEPS
+    assert final.step == ref_ens.step == STEPS
+    for name in STATE_FIELDS:
+        assert np.array_equal(final.array(name), ref_ens.array(name)), name
+    assert kills >= MIN_KILLS

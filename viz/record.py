@@ -1,0 +1,126 @@
+"""``python -m viz record run.h5 -o run.rrd``: replay an archive's snapshots as a rerun recording.
+
+The archive (``warpratchet run ... --out run.h5 --snapshot-every K``) holds, every ``K`` steps,
+``(x, p mod 1)``, the FTLE and ``A_n`` (Eq. An) of a fixed subsample, and one row of ensemble
+series per chunk. The recording has one frame of the cloud per snapshot and the whole series
+(mean ``A_n`` with its standard error, FTLE statistics, chaotic fraction, the theory's ``A`` of
+Eqs. (Aa), (Ab) where it exists), in the layout of :mod:`warpratchet.recording`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any, NoReturn
+
+import numpy as np
+
+from warpratchet.observables import default_lyapunov_threshold
+from warpratchet.recording import SERIES_KEYS, PhaseSpaceRecording
+
+__all__ = ["replay", "main"]
+
+
+def replay(
+    archive: Any,
+    path: str | Path | None,
+    *,
+    spawn: bool = False,
+    color_by: str = "ftle",
+    trail: bool = False,
+) -> PhaseSpaceRecording:
+    """Write the snapshots and series of an open archive to a recording; returns it (closed).
+
+    Parameters
+    ----------
+    archive : warpratchet.archive.Archive
+        From :func:`warpratchet.archive.open_archive`: ``params``, ``settings``, ``series`` and
+        ``snapshots`` (``steps (S,)``, ``x, p, ftle, A (S, M)``) are read.
+    path : str or Path, optional
+        ``.rrd`` file to create (must not exist).
+    spawn, color_by, trail
+        See :class:`warpratchet.recording.PhaseSpaceRecording`.
+    """
+    settings = archive.settings
+    snaps = archive.snapshots
+    series = archive.series
+    threshold = settings.get("threshold")
+    info = {
+        "archive": str(getattr(archive, "path", "")),
+        "points": f"{settings.get('points')} ({settings.get('sampler')}, seed {settings.get('seed')})",
+        "recorded points": f"{snaps.x.shape[1] if len(snaps) else 0} (the archive's snapshot subsample)",
+        "chaos threshold": "10 (1 + ln n)/n" if threshold is None else threshold,
+    }
+    title = f"replay of {Path(str(getattr(archive, 'path', 'archive'))).name}"
+    with PhaseSpaceRecording(
+        archive.params, path, spawn=spawn, color_by=color_by, trail=trail, title=title, info=info
+    ) as rec:
+        for s, step in enumerate(np.asarray(snaps.steps)):
+            step = int(step)
+            if step == 0:  # no FTLE or A_n before the first iteration
+                rec.log_cloud(0, snaps.x[s], snaps.p[s])
+                continue
+            rec.log_cloud(
+                step,
+                snaps.x[s],
+                snaps.p[s],
+                ftle=snaps.ftle[s],
+                acc=snaps.A[s],
+                threshold=default_lyapunov_threshold(step) if threshold is None else threshold,
+            )
+        if len(series["step"]):
+            rec.send_series(series["step"], {key: series[key] for key in SERIES_KEYS})
+    return rec
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:
+        raise ValueError(message)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = _Parser(prog="python -m viz record", description=__doc__.splitlines()[0])
+    parser.add_argument("archive", help="HDF5 archive written by `warpratchet run --out FILE`")
+    parser.add_argument("-o", "--output", default=None, help="the .rrd file to write (must not exist)")
+    parser.add_argument("--spawn", action="store_true", help="also stream to a newly spawned viewer")
+    parser.add_argument(
+        "--color",
+        choices=["ftle", "class"],
+        default="ftle",
+        help="colour points by FTLE (log scale) or by class: chaotic / L / R / normal island",
+    )
+    parser.add_argument(
+        "--trail",
+        action="store_true",
+        help="the default view shows all frames up to the time cursor, not just the current one",
+    )
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point; returns the exit status (2 with one line on stderr for bad input)."""
+    try:
+        args = build_parser().parse_args(argv)
+        if args.output is None and not args.spawn:
+            raise ValueError("give -o FILE.rrd, --spawn, or both")
+        from warpratchet.archive import open_archive
+
+        with open_archive(args.archive) as archive:
+            rec = replay(archive, args.output, spawn=args.spawn, color_by=args.color, trail=args.trail)
+        if not rec.frames:
+            print(
+                f"viz record: note: {args.archive} has no snapshots (run with --snapshot-every); "
+                "the recording holds the series only",
+                file=sys.stderr,
+            )
+        if args.output is not None:
+            print(f"wrote {args.output}: {len(rec.frames)} frames")
+        return 0
+    except (ValueError, OSError, ImportError) as exc:
+        print(f"viz record: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
