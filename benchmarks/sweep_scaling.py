@@ -47,6 +47,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from warpratchet.cli import positive_int
 from warpratchet.ensemble import default_threads
 from warpratchet.sweep import TIMING_FIELDS, SweepSpec, maximal_path, run_point, run_sweep
 
@@ -58,16 +59,6 @@ class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:  # one line, exit 2
         print(f"{self.prog}: error: {message}", file=sys.stderr)
         raise SystemExit(2)
-
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid integer value: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} is outside the allowed range >= 1")
-    return value
 
 
 def _log(message: str) -> None:
@@ -111,9 +102,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = _Parser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small sweep (smoke test)")
     parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
-    parser.add_argument("--sweep-points", type=_positive_int, default=None, help="points on the path (24)")
-    parser.add_argument("--points", type=_positive_int, default=None, help="ensemble size per point (10^4)")
-    parser.add_argument("--steps", type=_positive_int, default=None, help="iterations per point (2x10^4)")
+    parser.add_argument("--sweep-points", type=positive_int, default=None, help="points on the path (24)")
+    parser.add_argument("--points", type=positive_int, default=None, help="ensemble size per point (10^4)")
+    parser.add_argument("--steps", type=positive_int, default=None, help="iterations per point (2x10^4)")
     args = parser.parse_args(argv)
 
     import distributed

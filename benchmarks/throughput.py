@@ -56,8 +56,14 @@ from typing import Any, NoReturn
 import numpy as np
 
 from warpratchet import Ensemble, MapParams, reference
-from warpratchet.ensemble import STATE_FIELDS, default_threads
-from warpratchet.kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
+from warpratchet.cli import positive_int
+from warpratchet.ensemble import (
+    INTERLEAVE,
+    RENORM_CHECK_EVERY,
+    RENORM_THRESHOLD,
+    STATE_FIELDS,
+    default_threads,
+)
 
 #: The benchmark problem: the README's example (domain "LR" of Eq. (Aa)), strip ensemble.
 PARAMS = MapParams(K=3.0, b1=0.1, b2=0.01)
@@ -474,16 +480,6 @@ def print_table(report: dict[str, Any]) -> None:
 
 
 # -- command line -----------------------------------------------------------------------------------
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"invalid integer value: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} is outside the allowed range >= 1")
-    return value
-
-
 def _positive_seconds(text: str) -> float:
     try:
         value = float(text)
@@ -505,17 +501,17 @@ def build_parser() -> argparse.ArgumentParser:
         prog="throughput.py",
         description="Point-steps per second of warpratchet, NumPy, Numba and plain C on the same map.",
     )
-    parser.add_argument("--points", type=_positive_int, help="ensemble size (default 10^6; --quick: 20000)")
+    parser.add_argument("--points", type=positive_int, help="ensemble size (default 10^6; --quick: 20000)")
     parser.add_argument(
         "--steps",
-        type=_positive_int,
+        type=positive_int,
         help="steps for every row (default: chosen per row to take --seconds; --quick: 1000)",
     )
     parser.add_argument(
         "--seconds", type=_positive_seconds, default=3.0, help="target seconds per measurement (default 3)"
     )
     parser.add_argument(
-        "--repeat", type=_positive_int, default=1, help="time each row this many times, keep the best"
+        "--repeat", type=positive_int, default=1, help="time each row this many times, keep the best"
     )
     parser.add_argument("--quick", action="store_true", help=f"{QUICK_POINTS} points x {QUICK_STEPS} steps")
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")

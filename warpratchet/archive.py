@@ -54,8 +54,14 @@ import h5py
 import numpy as np
 from h5py import h5f, h5g, h5p, h5s
 
-from .ensemble import STATE_FIELDS, Ensemble, Observer, default_chunk_steps
-from .kernels import RENORM_CHECK_EVERY, RENORM_THRESHOLD
+from .ensemble import (
+    RENORM_CHECK_EVERY,
+    RENORM_THRESHOLD,
+    STATE_FIELDS,
+    Ensemble,
+    Observer,
+    default_chunk_steps,
+)
 from .observables import acceleration, lyapunov, summarize
 from .params import MapParams
 

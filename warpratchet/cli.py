@@ -15,7 +15,7 @@ import time
 from collections.abc import Sequence
 from typing import Any, NoReturn
 
-__all__ = ["main", "UsageError", "ProgressBar", "emit_json"]
+__all__ = ["main", "UsageError", "ProgressBar", "emit_json", "positive_int", "nonnegative_int"]
 
 
 class UsageError(Exception):
@@ -46,7 +46,8 @@ def emit_json(obj: dict[str, Any]) -> None:
     print(json.dumps(_clean(obj), allow_nan=False))
 
 
-def _positive_int(text: str) -> int:
+def positive_int(text: str) -> int:
+    """argparse type: an integer >= 1 (also used by the benchmarks' command lines)."""
     try:
         value = int(text)
     except ValueError:
@@ -56,7 +57,8 @@ def _positive_int(text: str) -> int:
     return value
 
 
-def _nonnegative_int(text: str) -> int:
+def nonnegative_int(text: str) -> int:
+    """argparse type: an integer >= 0."""
     try:
         value = int(text)
     except ValueError:
@@ -133,20 +135,20 @@ def _cmd_theory(args) -> int:
 def _add_run(sub) -> None:
     p = sub.add_parser("run", help="iterate an ensemble and report A and the Lyapunov exponent")
     _add_map_args(p)
-    p.add_argument("--points", type=_positive_int, default=10_000, help="ensemble size (default 10000)")
-    p.add_argument("--steps", type=_positive_int, default=120_000, help="iterations (default 120000)")
-    p.add_argument("--seed", type=_nonnegative_int, default=0, help="NumPy seed (default 0)")
+    p.add_argument("--points", type=positive_int, default=10_000, help="ensemble size (default 10000)")
+    p.add_argument("--steps", type=positive_int, default=120_000, help="iterations (default 120000)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="NumPy seed (default 0)")
     p.add_argument(
         "--init",
         choices=["strip", "torus", "grid"],
         default="strip",
         help="initial conditions: the strip B of Eq. (B) (default), the torus, or a grid",
     )
-    p.add_argument("--threads", type=_positive_int, default=None, help="CPU threads (default: one per core)")
+    p.add_argument("--threads", type=positive_int, default=None, help="CPU threads (default: one per core)")
     p.add_argument("--device", default="cpu", help="Warp device, e.g. cpu or cuda:0 (default cpu)")
     p.add_argument(
         "--chunk-steps",
-        type=_positive_int,
+        type=positive_int,
         default=None,
         help="steps between observer calls (default: ~2.5e8 point-steps)",
     )
@@ -293,14 +295,14 @@ def _add_sweep(sub) -> None:
         help="with --grid: keep points in these domains of Fig. 3, e.g. LR or LR,R",
     )
     p.add_argument(
-        "--points", type=_positive_int, default=10_000, help="ensemble size per point (default 10000)"
+        "--points", type=positive_int, default=10_000, help="ensemble size per point (default 10000)"
     )
     p.add_argument(
-        "--steps", type=_positive_int, default=120_000, help="iterations per point (default 120000)"
+        "--steps", type=positive_int, default=120_000, help="iterations per point (default 120000)"
     )
     p.add_argument(
         "--seed",
-        type=_nonnegative_int,
+        type=nonnegative_int,
         default=0,
         help="root seed; point i uses child i of numpy SeedSequence(seed) (default 0)",
     )
@@ -330,7 +332,7 @@ def _add_sweep(sub) -> None:
     )
     p.add_argument(
         "--threads",
-        type=_positive_int,
+        type=positive_int,
         default=None,
         help="CPU threads per point (default: every core here; 1 per Dask worker thread)",
     )
@@ -463,19 +465,19 @@ def _add_archive_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="with --out: replace an existing file")
     p.add_argument(
         "--snapshot-every",
-        type=_nonnegative_int,
+        type=nonnegative_int,
         default=0,
         help="with --out: steps between x, p snapshots of a fixed subsample (default 0: none)",
     )
     p.add_argument(
         "--snapshot-points",
-        type=_positive_int,
+        type=positive_int,
         default=None,
         help="with --out: points in the snapshot subsample (default 1000)",
     )
     p.add_argument(
         "--checkpoint-every",
-        type=_positive_int,
+        type=positive_int,
         default=None,
         help="with --out: steps between full checkpoints (default 8 chunks)",
     )
@@ -519,19 +521,19 @@ def _add_resume(sub) -> None:
     p.add_argument("archive", help="HDF5 archive written by run --out")
     p.add_argument(
         "--steps",
-        type=_positive_int,
+        type=positive_int,
         required=True,
         help="total iterations to reach (beyond the archive's checkpoint)",
     )
     p.add_argument("--K", type=float, default=None, help="optional: must equal the archive's K")
     p.add_argument("--b1", type=float, default=None, help="optional: must equal the archive's b1")
     p.add_argument("--b2", type=float, default=None, help="optional: must equal the archive's b2")
-    p.add_argument("--points", type=_positive_int, default=None, help="optional: must equal the archive's")
-    p.add_argument("--seed", type=_nonnegative_int, default=None, help="optional: must equal the archive's")
+    p.add_argument("--points", type=positive_int, default=None, help="optional: must equal the archive's")
+    p.add_argument("--seed", type=nonnegative_int, default=None, help="optional: must equal the archive's")
     p.add_argument(
         "--init", choices=["strip", "torus", "grid"], default=None, help="optional: must equal the archive's"
     )
-    p.add_argument("--threads", type=_positive_int, default=None, help="CPU threads (default: one per core)")
+    p.add_argument("--threads", type=positive_int, default=None, help="CPU threads (default: one per core)")
     p.add_argument("--device", default="cpu", help="Warp device, e.g. cpu or cuda:0 (default cpu)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -642,25 +644,25 @@ def _add_sumrule(sub) -> None:
     where = p.add_mutually_exclusive_group()
     where.add_argument(
         "--points",
-        type=_positive_int,
+        type=positive_int,
         default=None,
         help="random points uniform on the torus (default 100000)",
     )
     where.add_argument(
         "--grid",
-        type=_positive_int,
+        type=positive_int,
         default=None,
         help="a G x G lattice off the kinks instead of random points",
     )
     p.add_argument(
         "--steps",
-        type=_positive_int,
+        type=positive_int,
         default=30_000,
         help="iterations per point (default 30000; at least 8 m_max^3)",
     )
     p.add_argument(
         "--m-max",
-        type=_positive_int,
+        type=positive_int,
         default=12,
         help="largest period m of an island's nu = w/m (default 12)",
     )
@@ -676,8 +678,8 @@ def _add_sumrule(sub) -> None:
         default=None,
         help="indicator value above which a point is chaotic (default: per indicator)",
     )
-    p.add_argument("--seed", type=_nonnegative_int, default=0, help="NumPy seed for --points (default 0)")
-    p.add_argument("--threads", type=_positive_int, default=None, help="CPU threads (default: one per core)")
+    p.add_argument("--seed", type=nonnegative_int, default=0, help="NumPy seed for --points (default 0)")
+    p.add_argument("--threads", type=positive_int, default=None, help="CPU threads (default: one per core)")
     p.add_argument("--device", default="cpu", help="Warp device, e.g. cpu or cuda:0 (default cpu)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -754,13 +756,13 @@ def _add_rerun_args(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--rerun-points",
-        type=_positive_int,
+        type=positive_int,
         default=None,
         help="points drawn per frame, a fixed subsample (default 100000)",
     )
     p.add_argument(
         "--rerun-every",
-        type=_positive_int,
+        type=positive_int,
         default=None,
         help="steps between frames (default: recording costs < 5%% of the run, at most 100 frames)",
     )

@@ -28,10 +28,14 @@ import numpy as np
 import warp as wp
 
 from . import kernels
+from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from .params import MapParams
 
 __all__ = [
     "STATE_FIELDS",
+    "INTERLEAVE",
+    "RENORM_CHECK_EVERY",
+    "RENORM_THRESHOLD",
     "SAMPLERS",
     "Observer",
     "Ensemble",
@@ -45,6 +49,8 @@ __all__ = [
 
 #: Per-point state arrays, in the order archives store them.
 STATE_FIELDS = ("x", "q", "winding", "p0", "dx", "dp", "log_stretch")
+#: The state arrays the kernels take, in their argument order (p0 is not needed to advance).
+_KERNEL_FIELDS = ("x", "q", "winding", "dx", "dp", "log_stretch")
 #: Initial-condition samplers by name (``"user"`` is an ensemble built from arrays).
 SAMPLERS = ("strip", "torus", "grid")
 
@@ -280,19 +286,22 @@ class Ensemble:
         return np.floor(self.array("p0")) + self.array("winding") + self.array("q")
 
     # -- dynamics -----------------------------------------------------------------------------
+    #: Kernel that advances one shard. A subclass that carries extra per-point accumulators
+    #: swaps it and lists the accumulators in :meth:`_extra_arrays` (see ``sumrule``).
+    _kernel = kernels.advance_map
+
+    def _extra_arrays(self) -> list[wp.array]:
+        """Arrays passed to :attr:`_kernel` after the state arrays, shape ``(points,)`` each."""
+        return []
+
     def _launch(self, lo: int, hi: int, steps: int) -> None:
         p = self.params
-        a = self._arrays
+        arrays = [self._arrays[name] for name in _KERNEL_FIELDS] + self._extra_arrays()
         wp.launch(
-            kernels.advance_map,
+            self._kernel,
             dim=kernels.launch_dim(hi - lo),
             inputs=[
-                a["x"][lo:hi],
-                a["q"][lo:hi],
-                a["winding"][lo:hi],
-                a["dx"][lo:hi],
-                a["dp"][lo:hi],
-                a["log_stretch"][lo:hi],
+                *(a[lo:hi] for a in arrays),
                 hi - lo,
                 self.step,
                 steps,

@@ -95,37 +95,12 @@ class IndicatorEnsemble(Ensemble):
     def from_state(cls, *args, **kwargs):
         raise ValueError("an IndicatorEnsemble must start at step 0: MEGNO and FLI need the whole orbit")
 
-    def _launch(self, lo: int, hi: int, steps: int) -> None:
-        # Ensemble's launch hook for one shard: swapping the kernel here reuses its chunked,
-        # multi-threaded run loop (and observers) unchanged.
-        p = self.params
-        a = self._arrays
-        ind = self._indicators
-        wp.launch(
-            kernels.advance_map_indicators,
-            dim=kernels.launch_dim(hi - lo),
-            inputs=[
-                a["x"][lo:hi],
-                a["q"][lo:hi],
-                a["winding"][lo:hi],
-                a["dx"][lo:hi],
-                a["dp"][lo:hi],
-                a["log_stretch"][lo:hi],
-                ind["fli"][lo:hi],
-                ind["megno_lsum"][lo:hi],
-                ind["megno_ysum"][lo:hi],
-                hi - lo,
-                self.step,
-                steps,
-                p.K,
-                p.b1,
-                1.0 - p.b2,
-                p.l1,
-                p.l2,
-                p.c,
-            ],
-            device=self.device,
-        )
+    # Ensemble's subclass hooks: the indicator kernel and its accumulators; the chunked,
+    # multi-threaded run loop (and observers) are reused unchanged.
+    _kernel = kernels.advance_map_indicators
+
+    def _extra_arrays(self) -> list:
+        return [self._indicators[name] for name in _INDICATOR_FIELDS]
 
     def indicators(self) -> dict[str, np.ndarray]:
         """Copies of ``fli`` (``max_j ln|v_8j|``) and ``megno`` (``<Y>`` of ``M^8``), shape ``(points,)``.
