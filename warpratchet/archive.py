@@ -300,63 +300,19 @@ def schedule(
     return chunk_steps, checkpoint_every
 
 
-class _Relay(Observer):
-    """Forwards to observers across two ``Ensemble.run`` calls as if they were one run."""
-
-    def __init__(self, observers: Sequence[Observer], target: int) -> None:
-        self.observers = observers
-        self.target = target
-        self.begun = False
-        self.final = False
-
-    def begin(self, ensemble, target_step):
-        if not self.begun:
-            self.begun = True
-            for obs in self.observers:
-                obs.begin(ensemble, self.target)
-
-    def after_chunk(self, ensemble, seconds):
-        for obs in self.observers:
-            obs.after_chunk(ensemble, seconds)
-
-    def end(self, ensemble):
-        if self.final:
-            for obs in self.observers:
-                obs.end(ensemble)
-
-
 def run_to(
     ensemble: Ensemble,
     target_step: int,
     observers: Iterable[Observer] = (),
     chunk_steps: int | None = None,
 ) -> Ensemble:
-    """Advance ``ensemble`` to the global step ``target_step`` with chunk ends at multiples of
-    ``chunk_steps`` (and at the target).
+    """Advance ``ensemble`` to the global step ``target_step`` (not by it: resume's total).
 
-    A run resumed from a step that is not a multiple of ``chunk_steps`` (a run that ended at an
-    arbitrary step) first runs a short head chunk, so its series rows, snapshots and checkpoints
-    land on the same steps as those of an uninterrupted run. Observers see one run.
+    :meth:`Ensemble.run` ends chunks at global multiples of ``chunk_steps``, so a resumed run's
+    series rows, snapshots and checkpoints land on the same steps as an uninterrupted run's.
     """
     target_step = _check_int("target_step", target_step, ensemble.step)
-    observers = list(observers)
-    if chunk_steps is None:
-        chunk_steps = default_chunk_steps(ensemble.points)
-    chunk_steps = _check_int("chunk_steps", chunk_steps, 1)
-    head = min((-ensemble.step) % chunk_steps, target_step - ensemble.step)
-    if head == 0:
-        return ensemble.run(target_step - ensemble.step, observers, chunk_steps)
-    relay = _Relay(observers, target_step)
-    try:
-        ensemble.run(head, [relay], chunk_steps=head)
-        relay.final = True
-        ensemble.run(target_step - ensemble.step, [relay], chunk_steps)
-    except BaseException:
-        if not relay.final:  # the first run's end() was held back: deliver it now
-            relay.final = True
-            relay.end(ensemble)
-        raise
-    return ensemble
+    return ensemble.run(target_step - ensemble.step, observers, chunk_steps)
 
 
 # -- reading --------------------------------------------------------------------------------------

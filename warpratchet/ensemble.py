@@ -341,7 +341,8 @@ class Ensemble:
         observers : sequence of Observer
             Called with :meth:`Observer.after_chunk` after every chunk.
         chunk_steps : int, optional
-            Steps per chunk (default :func:`default_chunk_steps`). The result does not depend on it.
+            Steps per chunk (default :func:`default_chunk_steps`); chunks end at global steps that
+            are multiples of it, and at the end of the run. The result does not depend on it.
         """
         if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
             raise ValueError(f"steps = {steps!r} is outside the allowed range steps >= 0")
@@ -359,7 +360,9 @@ class Ensemble:
             obs.begin(self, target)
         try:
             while self.step < target:
-                todo = min(chunk_steps, target - self.step)
+                # Chunk ends sit at global multiples of chunk_steps, so a run resumed from any
+                # step reports (and archives) at the same steps as an uninterrupted one.
+                todo = min(chunk_steps - self.step % chunk_steps, target - self.step)
                 start = time.perf_counter()
                 self._advance(todo, pool)
                 seconds = time.perf_counter() - start
