@@ -1,0 +1,123 @@
+"""The error types of warpratchet and the one set of input validators.
+
+Every public entry point (API and CLI alike) checks its inputs with these functions, so a bad
+value gives the same one-line message everywhere: the parameter's name, the value, and the
+allowed range, e.g. ``points = 0 is outside the allowed range points >= 1``. The CLI prints that
+line and exits with status 2.
+
+Conventions:
+
+* counts accept any integral type, NumPy's included, and reject ``bool`` (``True`` is not a
+  count) and floats, even integral ones (``1e6`` steps is almost always a typo for an int);
+* reals accept any real type (NumPy's included), reject ``bool``, NaN and infinities, and
+  check the range with the bounds' openness stated in the message;
+* the returned value is a plain Python ``int`` or ``float``, so nothing downstream sees a NumPy
+  scalar (whose arithmetic wraps at 64 bits) or a subclass.
+
+Pure: no Warp, no I/O.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import operator
+from collections.abc import Iterable
+
+__all__ = [
+    "WarpratchetError",
+    "ParameterError",
+    "FileFormatError",
+    "ResourceError",
+    "check_count",
+    "check_real",
+    "check_choice",
+    "check_optional",
+]
+
+
+class WarpratchetError(ValueError):
+    """Base of warpratchet's own errors; a ``ValueError`` so callers can catch either."""
+
+
+class ParameterError(WarpratchetError):
+    """A value outside its allowed range (the message names the parameter, value and range)."""
+
+
+class FileFormatError(WarpratchetError):
+    """A file that is not what it should be: wrong format, truncated, corrupted, or another run's."""
+
+
+class ResourceError(WarpratchetError):
+    """A request the machine cannot carry out (memory, disk, counts beyond what the code can carry)."""
+
+
+def _range_text(name: str, low: float | None, high: float | None, low_open: bool, high_open: bool) -> str:
+    lo = "" if low is None else f"{low!r} {'<' if low_open else '<='} "
+    hi = "" if high is None else f" {'<' if high_open else '<='} {high!r}"
+    return f"{lo}{name}{hi}"
+
+
+def check_count(name: str, value: object, low: int = 0, high: int | None = None) -> int:
+    """``value`` as a Python ``int`` in ``[low, high]``, or :class:`ParameterError`.
+
+    Parameters
+    ----------
+    name : str
+        The parameter's name as the user spells it (API field = CLI flag without dashes).
+    value : object
+        Any integral type (``int``, ``numpy.int64``, ...); ``bool`` and floats are refused.
+    low, high : int, optional
+        Inclusive bounds (``high=None``: no upper bound).
+    """
+    allowed = _range_text(name, low, high, False, False)
+    if isinstance(value, bool):
+        raise ParameterError(f"{name} = {value!r} is not an integer (allowed range {allowed})")
+    if not isinstance(value, numbers.Integral):
+        try:
+            value = operator.index(value)  # anything that declares itself an integer
+        except TypeError:
+            raise ParameterError(f"{name} = {value!r} is not an integer (allowed range {allowed})") from None
+    as_int = int(value)
+    if as_int < low or (high is not None and as_int > high):
+        raise ParameterError(f"{name} = {as_int!r} is outside the allowed range {allowed}")
+    return as_int
+
+
+def check_real(
+    name: str,
+    value: object,
+    low: float | None = None,
+    high: float | None = None,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> float:
+    """``value`` as a finite Python ``float`` in the given range, or :class:`ParameterError`.
+
+    ``low_open``/``high_open`` make a bound strict (``0 < K`` rather than ``0 <= K``).
+    """
+    allowed = _range_text(name, low, high, low_open, high_open)
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise ParameterError(f"{name} = {value!r} is not a real number (allowed range {allowed})")
+    as_float = float(value)
+    if not math.isfinite(as_float):
+        raise ParameterError(f"{name} = {as_float!r} is not finite (allowed range {allowed})")
+    below = low is not None and (as_float <= low if low_open else as_float < low)
+    above = high is not None and (as_float >= high if high_open else as_float > high)
+    if below or above:
+        raise ParameterError(f"{name} = {as_float!r} is outside the allowed range {allowed}")
+    return as_float
+
+
+def check_choice(name: str, value: object, choices: Iterable[str]) -> str:
+    """``value`` if it is one of ``choices``, or :class:`ParameterError` listing them."""
+    choices = tuple(choices)
+    if not isinstance(value, str) or value not in choices:
+        raise ParameterError(f"{name} = {value!r} is not one of {', '.join(choices)}")
+    return value
+
+
+def check_optional(check, name: str, value: object, *args, **kwargs):
+    """``None`` if ``value`` is ``None``, else ``check(name, value, *args, **kwargs)``."""
+    return None if value is None else check(name, value, *args, **kwargs)
