@@ -2,7 +2,7 @@
 
 The map (Eq. cpem) ``p' = p + K f(x), x' = x + p' mod 1`` with the piecewise-linear force of
 Eq. (fx). Start with :class:`MapParams`, :mod:`warpratchet.theory`, :class:`Ensemble` and
-:func:`summarize`.
+:func:`summarize`; :class:`RunSpec` holds every setting of a run (docs/architecture.md).
 """
 
 from importlib.metadata import PackageNotFoundError, version
@@ -12,6 +12,7 @@ from .archive import open_archive
 from .ensemble import Ensemble, Observer
 from .observables import acceleration, chaotic_mask, lyapunov, summarize
 from .params import MapParams
+from .spec import RunSpec
 
 try:
     __version__ = version("warpratchet")
@@ -20,6 +21,7 @@ except PackageNotFoundError:  # pragma: no cover - running from a source tree
 
 __all__ = [
     "MapParams",
+    "RunSpec",
     "Ensemble",
     "Observer",
     "theory",

@@ -28,8 +28,10 @@ import numpy as np
 import warp as wp
 
 from . import kernels
+from .errors import check_choice, check_count
 from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from .params import MapParams
+from .spec import MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS
 
 __all__ = [
     "STATE_FIELDS",
@@ -51,8 +53,8 @@ __all__ = [
 STATE_FIELDS = ("x", "q", "winding", "p0", "dx", "dp", "log_stretch")
 #: The state arrays the kernels take, in their argument order (p0 is not needed to advance).
 _KERNEL_FIELDS = ("x", "q", "winding", "dx", "dp", "log_stretch")
-#: Initial-condition samplers by name (``"user"`` is an ensemble built from arrays).
-SAMPLERS = ("strip", "torus", "grid")
+#: Initial-condition samplers by name, :data:`warpratchet.spec.SAMPLERS` (``"user"`` is an
+#: ensemble built from arrays).
 
 #: Grid offsets in units of the spacing. The golden-ratio fraction on the x axis keeps nodes
 #: off the kinks x = b1 and x = 1 - b2 for any b1, b2 with small denominators. The p axis has
@@ -86,8 +88,7 @@ def grid_nodes(side: int) -> tuple[np.ndarray, np.ndarray]:
     and :data:`GRID_P_OFFSET`, so no node lands on a kink of the force or on the sloped edges of
     the regions of Appendix B. Row-major in ``p``: node ``(i, j)`` is element ``j * G + i``.
     """
-    if isinstance(side, bool) or not isinstance(side, (int, np.integer)) or side < 1:
-        raise ValueError(f"grid = {side!r} is outside the allowed range grid >= 1 (an integer)")
+    side = check_count("grid", side, 1)
     x_axis = (np.arange(side) + GRID_OFFSET) / side
     p_axis = (np.arange(side) + GRID_P_OFFSET) / side
     x, p = np.meshgrid(x_axis, p_axis, indexing="xy")
@@ -198,9 +199,7 @@ class Ensemble:
             raise ValueError(f"device = {device!r} is not available (Warp sees: {available})") from None
         if threads is None:
             threads = default_threads()
-        if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
-            raise ValueError(f"threads = {threads!r} is outside the allowed range threads >= 1")
-        self.threads = threads
+        self.threads = check_count("threads", threads, 1, MAX_THREADS)
         self.sampler = sampler
         self.seed = seed
         self.step = int(step)
@@ -231,19 +230,16 @@ class Ensemble:
 
         Seeded with ``numpy.random.default_rng(seed)``: the same arguments give the same points.
         """
-        if isinstance(points, bool) or not isinstance(points, int) or points < 1:
-            raise ValueError(f"points = {points!r} is outside the allowed range points >= 1")
-        if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-            raise ValueError(f"seed = {seed!r} is outside the allowed range seed >= 0 (an integer)")
+        points = check_count("points", points, 1)
+        seed = check_count("seed", seed, 0)
+        check_choice("init", init, SAMPLERS)
         rng = np.random.default_rng(seed)
         if init == "strip":
             x, p = sample_strip(params, points, rng)
         elif init == "torus":
             x, p = sample_torus(points, rng)
-        elif init == "grid":
-            x, p = sample_grid(points)
         else:
-            raise ValueError(f"init = {init!r} is not one of {', '.join(SAMPLERS)}")
+            x, p = sample_grid(points)
         return cls(params, x, p, device=device, threads=threads, sampler=init, seed=seed)
 
     @classmethod
@@ -344,12 +340,11 @@ class Ensemble:
             Steps per chunk (default :func:`default_chunk_steps`); chunks end at global steps that
             are multiples of it, and at the end of the run. The result does not depend on it.
         """
-        if isinstance(steps, bool) or not isinstance(steps, int) or steps < 0:
-            raise ValueError(f"steps = {steps!r} is outside the allowed range steps >= 0")
+        steps = check_count("steps", steps, 0)
         if chunk_steps is None:
             chunk_steps = default_chunk_steps(self.points)
-        if isinstance(chunk_steps, bool) or not isinstance(chunk_steps, int) or chunk_steps < 1:
-            raise ValueError(f"chunk_steps = {chunk_steps!r} is outside the allowed range chunk_steps >= 1")
+        # The kernel counts a launch's steps in a 32-bit int: a longer chunk would run fewer steps.
+        chunk_steps = check_count("chunk_steps", chunk_steps, 1, MAX_CHUNK_STEPS)
         observers = list(observers)
         target = self.step + steps
         # Compile (or load from cache) before any thread launches.

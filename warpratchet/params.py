@@ -17,22 +17,14 @@ whose slopes and offset follow from continuity and the ratchet condition
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import ParameterError, check_real
+
+# check_real is re-exported: it was params.check_real before errors.py held the one validator set.
 __all__ = ["MapParams", "check_real"]
-
-
-def check_real(name: str, value: object) -> float:
-    """Return ``value`` as a finite float or raise ``ValueError`` naming it."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise ValueError(f"{name} = {value!r} is not a real number")
-    as_float = float(value)
-    if not math.isfinite(as_float):
-        raise ValueError(f"{name} = {as_float!r} is not finite")
-    return as_float
 
 
 @dataclass(frozen=True)
@@ -49,9 +41,9 @@ class MapParams:
 
     Raises
     ------
-    ValueError
-        If any parameter is not a finite real number in its allowed range; the message
-        names the value and the range.
+    ParameterError
+        (a ``ValueError``) If any parameter is not a finite real number in its allowed range;
+        the message names the value and the range.
     """
 
     K: float
@@ -59,17 +51,16 @@ class MapParams:
     b2: float
 
     def __post_init__(self) -> None:
-        K = check_real("K", self.K)
+        K = check_real("K", self.K, 0, 4, low_open=True, high_open=True)
         b1 = check_real("b1", self.b1)
         b2 = check_real("b2", self.b2)
-        if not 0.0 < K < 4.0:
-            raise ValueError(f"K = {K!r} is outside the allowed range 0 < K < 4")
-        if not b1 > 0.0:
-            raise ValueError(f"b1 = {b1!r} is outside the allowed range b1 > 0")
-        if not b2 > 0.0:
-            raise ValueError(f"b2 = {b2!r} is outside the allowed range b2 > 0")
+        # The strip widths are bounded jointly (b1 + b2 < 1), which no single-value range says; the
+        # messages keep the form "b1 > 0" of release 0.1.
+        for name, width in (("b1", b1), ("b2", b2)):
+            if not width > 0.0:
+                raise ParameterError(f"{name} = {width!r} is outside the allowed range {name} > 0")
         if not b1 + b2 < 1.0:
-            raise ValueError(f"b1 + b2 = {b1 + b2!r} is outside the allowed range b1 + b2 < 1")
+            raise ParameterError(f"b1 + b2 = {b1 + b2!r} is outside the allowed range b1 + b2 < 1")
         object.__setattr__(self, "K", K)
         object.__setattr__(self, "b1", b1)
         object.__setattr__(self, "b2", b2)

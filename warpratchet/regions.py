@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import check_count
 from .params import MapParams
 
 __all__ = [
@@ -80,10 +81,9 @@ def in_strip(params: MapParams, x, p) -> np.ndarray:
 
 def in_image(params: MapParams, x, p, s: int) -> np.ndarray:
     """Membership of ``M^s B`` for an integer ``s >= 0``: ``M^-s z`` lies in ``B`` (any ``K``)."""
-    if isinstance(s, bool) or not isinstance(s, (int, np.integer)) or s < 0:
-        raise ValueError(f"s = {s!r} is outside the allowed range s >= 0 (an integer)")
+    s = check_count("s", s, 0)
     x, p = _points(x, p)
-    for _ in range(int(s)):
+    for _ in range(s):
         x, p = inverse_torus_map(params, x, p)
     return in_strip(params, x, p)
 

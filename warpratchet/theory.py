@@ -15,7 +15,8 @@ from __future__ import annotations
 import math
 from typing import Literal
 
-from .params import MapParams, check_real
+from .errors import check_real
+from .params import MapParams
 
 __all__ = [
     "Domain",
