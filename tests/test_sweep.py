@@ -139,6 +139,7 @@ def test_rows_summarise_the_ensemble_their_seed_rebuilds(reference_rows):
     ens = Ensemble.sample(p, SPEC.points, SPEC.init, row["seed"], threads=1).run(SPEC.steps)
     s = summarize(ens.state(), ens.step)
     assert _bits(s.A) == _bits(row["A"]) and _bits(s.lyapunov) == _bits(row["lyapunov"])
+    assert _bits(s.threshold) == _bits(row["threshold"])  # the threshold used, the default resolved
     assert s.chaotic_points == row["chaotic_points"]
     assert _physics([run_point(p, SPEC, 2, threads=1)]) == _physics([row])
 
@@ -150,7 +151,7 @@ def test_dask_local_cluster_gives_the_local_rows_bit_for_bit(tmp_path, reference
     local_file, dask_file = tmp_path / "local.h5", tmp_path / "dask.h5"
     local = run_sweep(POINTS, SPEC, out=local_file, progress=False)
     # No ensemble may run in this process from here on: the Dask rows must come from the workers.
-    monkeypatch.setattr(sweep_module, "Ensemble", None)
+    monkeypatch.setattr(sweep_module.run, "Ensemble", None)
     with (
         distributed.LocalCluster(
             n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None
@@ -308,6 +309,21 @@ def test_cli_bad_input_is_one_line_naming_the_value(args, message, capsys):
     captured = capsys.readouterr()
     assert captured.out == ""
     assert captured.err.count("\n") == 1 and message in captured.err, captured.err
+
+
+# -- files of release 0.1.0 ----------------------------------------------------------------------
+def test_a_format_v1_sweep_file_reads_and_resumes_computing_nothing(tmp_path, capsys):
+    """tests/data/sweep_v1.h5 (tests/data/README.md): its rows, and the same command finds it complete."""
+    data = os.path.join(os.path.dirname(__file__), "data")
+    with open(os.path.join(data, "sweep_v1.json")) as f:
+        expected = json.load(f)
+    assert _exact(read_sweep(os.path.join(data, "sweep_v1.h5"))) == _exact(expected)
+    copy = tmp_path / "sweep_v1.h5"
+    copy.write_bytes(open(os.path.join(data, "sweep_v1.h5"), "rb").read())
+    args = ["sweep", "--path", "maximal", "--K", "3", "--b2", "0.02:0.04:2", "--points", "200"]
+    assert main([*args, "--steps", "512", "--out", str(copy), "--quiet"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == f"2 points: 0 computed, 2 read from {copy}"
+    assert _exact(read_sweep(copy)) == _exact(expected)
 
 
 # -- benchmark smoke test -------------------------------------------------------------------------

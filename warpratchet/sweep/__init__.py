@@ -1,0 +1,41 @@
+"""Parameter sweeps: one ensemble per point (K, b1, b2), run locally or on a Dask cluster.
+
+A sweep is a list of map parameters and one :class:`~warpratchet.spec.SweepSpec` (the subset of
+:class:`~warpratchet.spec.RunSpec` every point shares: ensemble size, steps, sampler, root seed,
+chaos threshold). Every point yields one summary row (:data:`ROW_FIELDS`): the parameters, the
+existence domain of Fig. 3, the theory's A where the paper has a closed form (K = 3: Eqs. Aa,
+Ab), and the numerical A, FTLE statistics and chaotic fraction of
+:func:`warpratchet.observables.summarize`.
+
+The package has three rooms:
+
+* :mod:`~warpratchet.sweep.paths`: the paper's paths and grids (Figs. 5-9), pure;
+* :mod:`~warpratchet.sweep.file`: the HDF5 sweep file (layout, resume, reading);
+* :mod:`~warpratchet.sweep.run`: one point (:func:`run_point`), seeds (:func:`point_seed`),
+  and the local and Dask executors (:func:`run_sweep`).
+"""
+
+from ..spec import SweepSpec
+from .file import FORMAT, FORMAT_VERSION, ROW_DTYPE, ROW_FIELDS, TIMING_FIELDS, read_definition, read_sweep
+from .paths import DOMAINS, fixed_b1_path, grid_points, k_path, line_path, maximal_path
+from .run import point_seed, run_point, run_sweep
+
+__all__ = [
+    "SweepSpec",
+    "maximal_path",
+    "line_path",
+    "fixed_b1_path",
+    "grid_points",
+    "k_path",
+    "DOMAINS",
+    "point_seed",
+    "run_point",
+    "run_sweep",
+    "read_sweep",
+    "read_definition",
+    "ROW_DTYPE",
+    "ROW_FIELDS",
+    "TIMING_FIELDS",
+    "FORMAT",
+    "FORMAT_VERSION",
+]
