@@ -1,0 +1,162 @@
+"""What every subcommand shares: the one-line error, JSON output, flags built from RunSpec.
+
+A setting of a run has one name: the flag of a :class:`~warpratchet.spec.RunSpec` field is the
+field's name with dashes (``chunk_steps`` -> ``--chunk-steps``), and its type, range, choices,
+default and help come from the field (:func:`spec_flag`); a subcommand states only where its
+meaning differs (e.g. ``sumrule``'s default of 30000 steps). Bad values fail while parsing, with
+the flag named: ``argument --points: points = 0 is outside the allowed range 1 <= points``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+from collections.abc import Iterable
+from typing import Any, NoReturn
+
+from ..errors import ParameterError, check_count
+from ..progress import ProgressBar
+from ..spec import RunSpec, setting_of
+
+__all__ = [
+    "UsageError",
+    "Parser",
+    "ProgressBar",
+    "emit_json",
+    "count_type",
+    "positive_int",
+    "nonnegative_int",
+    "flag_name",
+    "spec_flag",
+    "spec_flags",
+    "spec_from_args",
+    "print_warnings",
+]
+
+_FROM_SPEC = object()  # "take it from the RunSpec field"
+
+
+class UsageError(Exception):
+    """Bad input from the user: reported in one line, exit status 2."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors are one line (:class:`UsageError`), not usage + error."""
+
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(f"{self.prog}: {message}")
+
+
+def _clean(value: Any) -> Any:
+    """JSON-safe: NaN and infinities become null, NumPy scalars become Python numbers."""
+    if isinstance(value, dict):
+        return {k: _clean(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_clean(v) for v in value]
+    if hasattr(value, "item") and not isinstance(value, (str, bytes)):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def emit_json(obj: dict[str, Any]) -> None:
+    """Print one JSON object on stdout (NaN as null)."""
+    print(json.dumps(_clean(obj), allow_nan=False))
+
+
+_KIND_NAMES = {int: "integer", float: "float", str: "string"}
+
+
+def _typed(kind: type, check, message: str | None = None) -> Any:
+    """An argparse type: ``kind(text)``, then ``check(value)``.
+
+    A refused value's message is the validator's (it names the value and range), or
+    ``message.format(value=value)`` where a command line keeps an older wording.
+    """
+
+    def parse(text: str):
+        try:
+            value = kind(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"invalid {_KIND_NAMES[kind]} value: {text!r}") from None
+        try:
+            return check(value)
+        except ParameterError as exc:
+            raise argparse.ArgumentTypeError(
+                str(exc) if message is None else message.format(value=value)
+            ) from None
+
+    parse.__name__ = _KIND_NAMES[kind]
+    return parse
+
+
+def count_type(name: str, low: int, high: int | None = None) -> Any:
+    """argparse type: an integer in ``[low, high]`` (:func:`warpratchet.errors.check_count`)."""
+    return _typed(int, lambda value: check_count(name, value, low, high))
+
+
+#: argparse types for unnamed counts (the benchmarks' command lines; argparse names the flag).
+positive_int = _typed(
+    int, lambda value: check_count("N", value, 1), "{value} is outside the allowed range >= 1"
+)
+nonnegative_int = _typed(
+    int, lambda value: check_count("N", value, 0), "{value} is outside the allowed range >= 0"
+)
+
+
+def flag_name(name: str) -> str:
+    """The CLI flag of a setting: its name with dashes (``chunk_steps`` -> ``--chunk-steps``)."""
+    return "--" + name.replace("_", "-")
+
+
+def spec_flag(
+    parser: Any,
+    name: str,
+    *,
+    default: Any = _FROM_SPEC,
+    help: str | None = None,
+    required: bool | None = None,
+) -> None:
+    """Add the flag of RunSpec setting ``name`` to ``parser`` (or an argument group).
+
+    Type, range and choices always come from the setting; ``default`` and ``help`` do too unless
+    a subcommand gives its own (its meaning differs there). A setting without a default is a
+    required flag unless ``default`` is given.
+    """
+    field_default, setting = setting_of(name)
+    if default is _FROM_SPEC:
+        default = None if field_default is dataclasses.MISSING else field_default
+        if required is None:
+            required = field_default is dataclasses.MISSING
+    text = setting.help if help is None else help
+    if help is None and default is not None:
+        text += f" (default {default})"
+    kwargs: dict[str, Any] = {"default": default, "required": bool(required), "help": text}
+    if setting.choices is not None:
+        kwargs["choices"] = list(setting.choices)
+    else:
+        kwargs["type"] = _typed(setting.kind, lambda value: setting.validate(name, value))
+    parser.add_argument(flag_name(name), dest=name, **kwargs)
+
+
+def spec_flags(parser: Any, names: Iterable[str], **overrides: dict[str, Any]) -> None:
+    """:func:`spec_flag` for each name; ``overrides[name]`` holds that flag's own keywords."""
+    for name in names:
+        spec_flag(parser, name, **overrides.get(name, {}))
+
+
+def spec_from_args(args: argparse.Namespace, cls: type = RunSpec, **fixed: Any) -> Any:
+    """The spec (``RunSpec`` or ``SweepSpec``) of the parsed flags; ``None`` flags take the default."""
+    names = [f.name for f in dataclasses.fields(cls)]
+    values = {n: getattr(args, n) for n in names if getattr(args, n, None) is not None}
+    return cls.from_dict({**values, **fixed})
+
+
+def print_warnings(caught: Iterable[Any]) -> None:
+    """Warnings caught while reading a file, one line each on stderr."""
+    for w in caught:
+        print(f"warpratchet: warning: {w.message}", file=sys.stderr)

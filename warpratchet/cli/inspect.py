@@ -1,0 +1,59 @@
+"""``warpratchet inspect``: parameters, progress and latest summary of an archive (also while it runs)."""
+
+from __future__ import annotations
+
+import argparse
+import warnings
+
+from .common import emit_json, print_warnings
+
+
+def add(sub) -> None:
+    p = sub.add_parser("inspect", help="parameters, progress and latest summary of an archive")
+    p.add_argument("archive", help="HDF5 archive written by run --out")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
+def command(args: argparse.Namespace) -> int:
+    from .. import theory
+    from ..archive import ArchiveWarning, open_archive
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ArchiveWarning)
+        with open_archive(args.archive) as arc:
+            info = arc.info()
+            info["A_theory"] = theory.summary(arc.params)["A"]
+    print_warnings(caught)
+    if args.json:
+        emit_json(info)
+        return 0
+    p, s, v, last = info["params"], info["settings"], info["versions"], info["latest"]
+    print(f"{info['path']}: {info['format']} v{info['format_version']}, created {info['created']}")
+    print(
+        f"  K = {p['K']}, b1 = {p['b1']}, b2 = {p['b2']}  (l1 = {p['l1']:.6g}, l2 = {p['l2']:.6g}, "
+        f"c = {p['c']:.6g})"
+    )
+    snaps = (
+        f"snapshots of {s['snapshot_points']} points every {s['snapshot_every']} steps"
+        if s["snapshot_every"]
+        else "no snapshots"
+    )
+    init = s.get("init", s.get("sampler"))  # format v1 archives call the sampler "sampler"
+    print(
+        f"  {s['points']} points ({init}, seed {s['seed']}), chunks of {s['chunk_steps']} steps, "
+        f"checkpoint every {s['checkpoint_every']}, {snaps}"
+    )
+    print(
+        f"  progress: checkpoint at step {info['checkpoint_step']}, {info['rows']} series rows, "
+        f"{info['snapshots']} snapshots"
+    )
+    if last is None:
+        print("  latest: no chunk recorded yet")
+    else:
+        a_theory = "" if info["A_theory"] is None else f"   (theory {info['A_theory']:.6g})"
+        print(
+            f"  latest (step {last['step']}): A = {last['A']:.6g} +- {last['A_stderr']:.2g}{a_theory}, "
+            f"lyapunov = {last['lyapunov']:.6g} over {last['chaotic_fraction']:.4f} of the points"
+        )
+    print("  written by " + ", ".join(f"{k} {val}" for k, val in v.items()))
+    return 0

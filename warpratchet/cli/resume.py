@@ -1,0 +1,78 @@
+"""``warpratchet resume``: continue an archived run (``run --out``) to a total number of steps.
+
+The run's settings are the archive's; the map and ensemble flags are optional and, when given,
+must equal the archive's (a guard against resuming the wrong file). Output: ``run``'s report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+import warnings
+
+from ..spec import LEGACY_NAMES
+from .common import ProgressBar, UsageError, print_warnings, spec_flag, spec_flags
+from .run import print_report, run_report
+
+#: Settings that may be given to check them against the archive.
+CHECKED = ("K", "b1", "b2", "points", "seed", "init")
+
+
+def add(sub) -> None:
+    p = sub.add_parser("resume", help="continue an archived run (run --out) to a total number of steps")
+    p.add_argument("archive", help="HDF5 archive written by run --out")
+    spec_flag(
+        p,
+        "steps",
+        default=None,
+        required=True,
+        help="total iterations to reach (beyond the archive's checkpoint)",
+    )
+    spec_flags(
+        p,
+        CHECKED,
+        **{name: {"default": None, "help": "optional: must equal the archive's"} for name in CHECKED},
+    )
+    spec_flags(p, ("threads", "device"))
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def _archived(arc) -> dict:
+    """The archive's settings under RunSpec's names (format v1 wrote ``sampler`` for ``init``)."""
+    stored = {LEGACY_NAMES.get(key, key): value for key, value in arc.settings.items()}
+    return {**stored, **arc.params.as_dict(), "points": arc.points}
+
+
+def command(args: argparse.Namespace) -> int:
+    from ..archive import ArchiveSink, ArchiveWarning, open_archive, run_to
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ArchiveWarning)
+        with open_archive(args.archive) as arc:
+            archived = _archived(arc)
+            start_step = arc.checkpoint_step
+        for key in CHECKED:
+            asked = getattr(args, key)
+            if asked is not None and asked != archived[key]:
+                raise UsageError(
+                    f"--{key} {asked} disagrees with the archive's {key} = {archived[key]} in {args.archive}"
+                )
+        if args.steps <= start_step:
+            raise UsageError(
+                f"--steps {args.steps} is not beyond the archive's checkpoint at step "
+                f"{start_step}; pass a total above {start_step}"
+            )
+        sink, ensemble = ArchiveSink.resume(args.archive, threads=args.threads, device=args.device)
+    print_warnings(caught)
+    first = ensemble.step
+    start = time.perf_counter()
+    try:
+        run_to(ensemble, args.steps, [ProgressBar(disable=args.quiet), sink], sink.chunk_steps)
+    finally:
+        sink.close()
+    seconds = time.perf_counter() - start
+    report = run_report(ensemble, seconds, args.steps - first, sink.threshold)
+    report["archive"] = args.archive
+    print_report(report, args.json)
+    return 0

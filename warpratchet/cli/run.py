@@ -1,0 +1,114 @@
+"""``warpratchet run``: iterate an ensemble and report A and the Lyapunov exponent.
+
+Its flags are the :class:`~warpratchet.spec.RunSpec` fields (``--K --b1 --b2 --points --steps
+--seed --init --threads --device --chunk-steps --threshold``) plus the output options of
+:mod:`.sinks` (``--out`` archive, ``--rerun`` recording). :func:`run_report` and
+:func:`print_report` are also ``resume``'s output.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import time
+from typing import Any
+
+from ..spec import RunSpec
+from .common import ProgressBar, emit_json, spec_flags, spec_from_args
+from .sinks import add_archive_flags, add_rerun_flags, archive_plan, rerun_sink
+
+#: The RunSpec settings ``run`` takes as flags: all but the classifier (``run`` reports the FTLE's
+#: A and Lyapunov exponent; ``sumrule`` has the other indicators).
+RUN_SETTINGS = tuple(f.name for f in dataclasses.fields(RunSpec) if f.name != "classifier")
+
+
+def add(sub) -> None:
+    p = sub.add_parser("run", help="iterate an ensemble and report A and the Lyapunov exponent")
+    spec_flags(p, RUN_SETTINGS)
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_archive_flags(p)
+    add_rerun_flags(p)
+
+
+def run_report(ensemble, seconds: float, steps_run: int, threshold: float | None) -> dict[str, Any]:
+    """The JSON object of ``run`` and ``resume``: parameters, A, FTLE statistics, speed."""
+    from .. import theory
+    from ..observables import summarize
+
+    summary = summarize(ensemble.state(), ensemble.step, threshold).as_dict()
+    del summary["step"]  # the report's "steps" is the ensemble's step
+    p = ensemble.params
+    return {
+        "K": p.K,
+        "b1": p.b1,
+        "b2": p.b2,
+        "points": ensemble.points,
+        "steps": ensemble.step,
+        "seed": ensemble.seed,
+        "init": ensemble.sampler,
+        "threads": ensemble.threads,
+        "A_theory": theory.summary(p)["A"],
+        **summary,  # A, A_stderr, lyapunov (+ _std, _min), chaotic_fraction, chaotic_points, threshold
+        "seconds": seconds,
+        "point_steps_per_second": ensemble.points * steps_run / seconds if seconds > 0 else None,
+    }
+
+
+def print_report(report: dict[str, Any], as_json: bool) -> None:
+    """:func:`run_report` as one JSON object, or as four lines for a human."""
+    if as_json:
+        emit_json(report)
+        return
+    a_theory = report["A_theory"]
+    print(
+        f"K = {report['K']}, b1 = {report['b1']}, b2 = {report['b2']}: "
+        f"{report['points']} points x {report['steps']} steps ({report['init']}, seed {report['seed']})"
+    )
+    print(
+        f"  A           = {report['A']:.6g} +- {report['A_stderr']:.2g}"
+        + ("" if a_theory is None else f"   (theory {a_theory:.6g})")
+    )
+    print(
+        f"  lyapunov    = {report['lyapunov']:.6g} (min {report['lyapunov_min']:.4g}) over "
+        f"{report['chaotic_fraction']:.4f} of the points"
+    )
+    if report["point_steps_per_second"]:
+        print(f"  {report['seconds']:.2f} s, {report['point_steps_per_second'] / 1e6:.0f} M point-steps/s")
+
+
+def command(args: argparse.Namespace) -> int:
+    from ..ensemble import Ensemble
+
+    spec = spec_from_args(args)
+    plan = archive_plan(args, spec)  # bad archive flags fail before any work
+    recorder = rerun_sink(args, spec)  # so do bad recording flags
+    ensemble = Ensemble.sample(
+        spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
+    )
+    observers = [ProgressBar(disable=args.quiet)]
+    chunk_steps = spec.chunk_steps
+    sink = None
+    if plan is not None:
+        from ..archive import ArchiveSink
+
+        sink = ArchiveSink(args.out, ensemble, **plan)
+        observers.append(sink)
+        chunk_steps = sink.chunk_steps
+    if recorder is not None:
+        observers.append(recorder)
+        chunk_steps = chunk_steps or recorder.every  # frames at exact multiples of --rerun-every
+    start = time.perf_counter()
+    try:
+        ensemble.run(spec.steps, observers, chunk_steps=chunk_steps)
+    finally:
+        if sink is not None:
+            sink.close()
+    seconds = time.perf_counter() - start
+    report = run_report(ensemble, seconds, spec.steps, spec.threshold)
+    if sink is not None:
+        report["archive"] = args.out
+    if recorder is not None and args.rerun is not None:
+        report["recording"] = args.rerun
+    print_report(report, args.json)
+    return 0

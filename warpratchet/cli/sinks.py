@@ -1,0 +1,124 @@
+"""The output options of ``run``: an archive (``--out``, docs/archive.md) and a rerun recording.
+
+Each sink's flags are checked up front, before any work, so a bad combination costs nothing:
+``--snapshot-every`` without ``--out``, ``--rerun-every`` without ``--rerun``, an existing file.
+The archive's schedule options are the archive's, not the run's (they change what is written,
+never a number): :func:`warpratchet.archive.schedule` checks them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from typing import Any
+
+from ..spec import RunSpec
+from .common import UsageError, count_type
+
+
+def _first_given(flags: list[tuple[str, Any]], needs: str) -> None:
+    """UsageError naming the first flag given without the one it needs."""
+    given = [flag for flag, value in flags if value]
+    if given:
+        raise UsageError(f"{given[0]} needs {needs}")
+
+
+# -- archives -----------------------------------------------------------------------------------
+def _count_flag(p: argparse.ArgumentParser, flag: str, low: int, default: int | None, help: str) -> None:
+    """A count flag whose errors name it as a setting (``--snapshot-every`` -> ``snapshot_every``)."""
+    p.add_argument(flag, type=count_type(flag[2:].replace("-", "_"), low), default=default, help=help)
+
+
+def add_archive_flags(p: argparse.ArgumentParser) -> None:
+    """The archive options of ``run`` (docs/archive.md)."""
+    p.add_argument("--out", default=None, help="stream the run into this HDF5 archive (resumable)")
+    p.add_argument("--force", action="store_true", help="with --out: replace an existing file")
+    with_out = "with --out: steps between"
+    _count_flag(
+        p, "--snapshot-every", 0, 0, f"{with_out} x, p snapshots of a fixed subsample (default 0: none)"
+    )
+    _count_flag(
+        p, "--snapshot-points", 1, None, "with --out: points in the snapshot subsample (default 1000)"
+    )
+    _count_flag(p, "--checkpoint-every", 1, None, f"{with_out} full checkpoints (default 8 chunks)")
+
+
+def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | None:
+    """ArchiveSink keywords from the run flags (None without --out); checks them up front."""
+    from ..archive import schedule
+
+    if args.out is None:
+        _first_given(
+            [
+                ("--force", args.force),
+                ("--snapshot-every", args.snapshot_every),
+                ("--snapshot-points", args.snapshot_points),
+                ("--checkpoint-every", args.checkpoint_every),
+            ],
+            "--out FILE",
+        )
+        return None
+    if os.path.lexists(args.out) and not args.force:
+        raise UsageError(f"{args.out} exists; refusing to overwrite it (pass --force to replace it)")
+    schedule(spec.points, spec.chunk_steps, args.snapshot_every, args.checkpoint_every)  # ValueError if bad
+    return {
+        "force": args.force,
+        "snapshot_every": args.snapshot_every,
+        "snapshot_points": 1000 if args.snapshot_points is None else args.snapshot_points,
+        "checkpoint_every": args.checkpoint_every,
+        "chunk_steps": spec.chunk_steps,
+        "threshold": spec.threshold,
+    }
+
+
+# -- recordings ---------------------------------------------------------------------------------
+def add_rerun_flags(p: argparse.ArgumentParser) -> None:
+    """The rerun recording options of ``run`` (README, "Watching the cloud")."""
+    p.add_argument(
+        "--rerun",
+        metavar="PATH",
+        default=None,
+        help="write a rerun recording (.rrd, must not exist) of the phase-space cloud while running",
+    )
+    p.add_argument(
+        "--rerun-spawn",
+        action="store_true",
+        help="stream the recording to a newly spawned rerun viewer (needs a display)",
+    )
+    _count_flag(p, "--rerun-points", 1, None, "points drawn per frame, a fixed subsample (default 100000)")
+    every = "steps between frames (default: recording costs < 5%% of the run, at most 100 frames)"
+    _count_flag(p, "--rerun-every", 1, None, every)
+    p.add_argument(
+        "--rerun-color",
+        choices=["ftle", "class"],
+        default=None,
+        help="colour by FTLE (default, log scale) or by class: chaotic / L / R / normal island",
+    )
+
+
+def rerun_sink(args: argparse.Namespace, spec: RunSpec):
+    """The RecordingSink of ``run --rerun/--rerun-spawn`` (None without them); checks flags up front."""
+    if args.rerun is None and not args.rerun_spawn:
+        _first_given(
+            [
+                ("--rerun-points", args.rerun_points is not None),
+                ("--rerun-every", args.rerun_every is not None),
+                ("--rerun-color", args.rerun_color is not None),
+            ],
+            "--rerun PATH or --rerun-spawn",
+        )
+        return None
+    from ..recording import DEFAULT_MAX_POINTS, RecordingSink, frame_every
+
+    max_points = args.rerun_points or DEFAULT_MAX_POINTS
+    try:
+        return RecordingSink(
+            args.rerun,
+            spawn=args.rerun_spawn,
+            max_points=max_points,
+            every=args.rerun_every or frame_every(spec.points, spec.steps, max_points),
+            color_by=args.rerun_color or "ftle",
+            threshold=spec.threshold,
+        )
+    except ImportError as exc:  # rerun-sdk is an optional extra
+        raise UsageError(str(exc)) from None

@@ -1,0 +1,26 @@
+"""``warpratchet theory``: the closed forms of the paper at (K, b1, b2), no simulation."""
+
+from __future__ import annotations
+
+import argparse
+
+from .common import emit_json, spec_flags
+
+
+def add(sub) -> None:
+    p = sub.add_parser("theory", help="closed forms of the paper at (K, b1, b2)")
+    spec_flags(p, ("K", "b1", "b2"))
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def command(args: argparse.Namespace) -> int:
+    from .. import theory
+    from ..params import MapParams
+
+    summary = theory.summary(MapParams(args.K, args.b1, args.b2))
+    if args.json:
+        emit_json(summary)
+    else:
+        for key, value in summary.items():
+            print(f"{key:>7} = {'n/a' if value is None else value}")
+    return 0
