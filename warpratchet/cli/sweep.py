@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..errors import ParameterError, check_count
 from .common import UsageError, emit_json, spec_flag, spec_flags, spec_from_args
 
 #: What each kind of sweep reads besides --K: the flags it needs (any other is an error).
@@ -92,8 +93,10 @@ def _parse_range(flag: str, text: str) -> list[float]:
         ) from None
     if not (math.isfinite(start) and math.isfinite(stop)):
         raise UsageError(f"{flag} {text!r}: START and STOP must be finite numbers")
-    if count < 1:
-        raise UsageError(f"{flag} {text!r}: COUNT = {count} is outside the allowed range COUNT >= 1")
+    try:
+        check_count("COUNT", count, 1)
+    except ParameterError as exc:
+        raise UsageError(f"{flag} {text!r}: {exc}") from None
     if count == 1 and start != stop:
         raise UsageError(f"{flag} {text!r}: COUNT = 1 cannot include both ends of a range; use COUNT >= 2")
     import numpy as np
