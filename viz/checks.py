@@ -28,6 +28,8 @@ from warpratchet.observables import acceleration
 from warpratchet.params import MapParams
 from warpratchet.sweep import read_sweep
 
+from .command import command_name
+
 __all__ = [
     "Z_MAX",
     "REQUIRED",
@@ -142,7 +144,7 @@ def load_sweeps(directory: Path) -> dict[str, list[dict[str, Any]]]:
     if missing:
         raise ValueError(
             f"--sweeps {directory}: no {', '.join(m + '.h5' for m in missing)}; "
-            "make them with: python -m viz figures --only fig7,fig8,fig9 --sweeps DIR ..."
+            f"make them with: {command_name('figures')} --only fig7,fig8,fig9 --sweeps DIR ..."
         )
     out = {n: read_sweep(directory / f"{n}.h5") for n in REQUIRED}
     if (directory / "fig6.h5").exists():
