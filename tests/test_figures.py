@@ -18,7 +18,7 @@ import pytest
 from matplotlib import image as mpimg
 
 from viz import figures, report
-from warpratchet import theory
+from warpratchet import paper, theory
 from warpratchet.ensemble import Ensemble
 from warpratchet.params import MapParams
 
@@ -161,3 +161,17 @@ def test_report_names_missing_sweeps(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "fig7.h5" in err and len(err.strip().splitlines()) == 1
     assert not (tmp_path / "v.md").exists()
+
+
+def test_full_settings_follow_the_papers_paths():
+    """Without --quick the sweeps of Figs. 7-9 are the paper's: its ranges, spacing, K and ensemble."""
+    s = figures.settings_for(quick=False)
+    assert (s.points, s.steps) == (paper.POINTS, paper.STEPS) == (10_000, 120_000)
+    for name, path in paper.PATHS.items():
+        points = figures.sweep_points(name, s)
+        assert len(points) == path.count
+        assert (points[0].b2, points[-1].b2) == path.b2_range
+        assert all(p.K == path.K for p in points)
+    assert all(p.b1 == theory.b1_on_maximal_path(p.b2) for p in figures.sweep_points("fig7", s))
+    assert all(math.isclose(p.b1, 3 * p.b2, rel_tol=1e-15) for p in figures.sweep_points("fig8", s))
+    assert all(p.b1 == 0.25 and p.K == 2.99 for p in figures.sweep_points("fig9", s))

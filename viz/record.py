@@ -10,14 +10,17 @@ Eqs. (Aa), (Ab) where it exists), in the layout of :mod:`warpratchet.recording`.
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 from pathlib import Path
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
 
 from warpratchet.observables import default_lyapunov_threshold
 from warpratchet.recording import SERIES_KEYS, PhaseSpaceRecording
+
+from .command import command_name, run
 
 __all__ = ["replay", "main"]
 
@@ -74,13 +77,11 @@ def replay(
     return rec
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:
-        raise ValueError(message)
-
-
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="python -m viz record", description=__doc__.splitlines()[0])
+def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
+    """The options of ``python -m viz record``."""
+    parser = argparse.ArgumentParser(
+        prog=command_name("record") if prog is None else prog, description=__doc__.splitlines()[0]
+    )
     parser.add_argument("archive", help="HDF5 archive written by `warpratchet run --out FILE`")
     parser.add_argument("-o", "--output", default=None, help="the .rrd file to write (must not exist)")
     parser.add_argument("--spawn", action="store_true", help="also stream to a newly spawned viewer")
@@ -98,28 +99,29 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit status (2 with one line on stderr for bad input)."""
-    try:
-        args = build_parser().parse_args(argv)
-        if args.output is None and not args.spawn:
-            raise ValueError("give -o FILE.rrd, --spawn, or both")
-        from warpratchet.archive import open_archive
+def _replay(args: argparse.Namespace, prog: str) -> int:
+    if args.output is None and not args.spawn:
+        raise ValueError("give -o FILE.rrd, --spawn, or both")
+    from warpratchet.archive import open_archive
 
-        with open_archive(args.archive) as archive:
-            rec = replay(archive, args.output, spawn=args.spawn, color_by=args.color, trail=args.trail)
-        if not rec.frames:
-            print(
-                f"viz record: note: {args.archive} has no snapshots (run with --snapshot-every); "
-                "the recording holds the series only",
-                file=sys.stderr,
-            )
-        if args.output is not None:
-            print(f"wrote {args.output}: {len(rec.frames)} frames")
-        return 0
-    except (ValueError, OSError, ImportError) as exc:
-        print(f"viz record: error: {exc}", file=sys.stderr)
-        return 2
+    with open_archive(args.archive) as archive:
+        rec = replay(archive, args.output, spawn=args.spawn, color_by=args.color, trail=args.trail)
+    if not rec.frames:
+        print(
+            f"{prog}: note: {args.archive} has no snapshots (run with --snapshot-every); "
+            "the recording holds the series only",
+            file=sys.stderr,
+        )
+    if args.output is not None:
+        print(f"wrote {args.output}: {len(rec.frames)} frames")
+    return 0
+
+
+def main(argv: list[str] | None = None, prog: str | None = None) -> int:
+    """Entry point; returns the exit status (2 with one line on stderr for bad input, 130 after Ctrl-C)."""
+    parser = build_parser(prog)
+    replay_into = functools.partial(_replay, prog=parser.prog)
+    return run(parser, argv, replay_into, interrupted="the recording holds the frames written so far")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -22,32 +22,19 @@ scenes of Fig. 2 record every step.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import NoReturn
 
 import numpy as np
 
-from warpratchet import Ensemble, MapParams
+from warpratchet import Ensemble, MapParams, paper
 from warpratchet.recording import RecordingSink, check_new_file, require_rerun
-from warpratchet.theory import K_from_alpha
+
+from .command import command_name, run
 
 __all__ = ["Scene", "SCENES", "frame_steps", "record_scene", "main"]
-
-#: Fig. 1 strip widths and Fig. 2's "very small" ones.
-FIG1_B = (0.05, 0.02)
-FIG2_B = (1.0e-7, 1.0e-7)
-#: The three rotation angles of Fig. 1 (Eq. eig). K = 3 is written exactly: K_from_alpha(2 pi/3)
-#: rounds to 2.9999999999999996, and the K = 3 theory (Sec. IV) applies only at K = 3.
-FIG1_K = {
-    "a": 3.0,
-    "b": K_from_alpha(6.0 * math.pi / 5.0),
-    "c": K_from_alpha(math.pi * (math.sqrt(5.0) - 1.0) / 2.0),
-}
-FIG1_ALPHA = {"a": "2 pi/3", "b": "6 pi/5", "c": "pi (sqrt 5 - 1)/2"}
 
 
 @dataclass(frozen=True)
@@ -78,30 +65,20 @@ class Scene:
 
 def _scenes() -> dict[str, Scene]:
     scenes = {}
-    for key, K in FIG1_K.items():
-        alpha = FIG1_ALPHA[key]
-        scenes[f"fig1{key}"] = Scene(
-            f"fig1{key}",
-            f"Fig. 1({key}): alpha = {alpha}, K = {K:.6g}, b1 = {FIG1_B[0]}, b2 = {FIG1_B[1]}",
-            MapParams(K, *FIG1_B),
-            trail=False,
-            points=50_000,
-            steps=2_000,
-        )
-    for key, K in FIG1_K.items():
-        alpha = FIG1_ALPHA[key]
-        scenes[f"fig2{key}"] = Scene(
-            f"fig2{key}",
-            f"Fig. 2({key}): alpha = {alpha}, K = {K:.6g}, b1 = b2 = {FIG2_B[0]:g} (near the ESM)",
-            MapParams(K, *FIG2_B),
-            trail=True,
-            points=20_000,
-            steps=200,
-        )
+    # Figs. 1 and 2 share their three rotation angles; Fig. 2's cloud leaves a trail.
+    for figure, maps, widths, trail, points, steps in (
+        ("1", paper.FIG1, f"b1 = {paper.FIG1_WIDTHS[0]}, b2 = {paper.FIG1_WIDTHS[1]}", False, 50_000, 2_000),
+        ("2", paper.FIG2, f"b1 = b2 = {paper.FIG2_WIDTHS[0]:g} (near the ESM)", True, 20_000, 200),
+    ):
+        for rotation, params in zip(paper.ROTATIONS, maps, strict=True):
+            name = f"fig{figure}{rotation.panel}"
+            title = f"Fig. {figure}({rotation.panel}): alpha = {rotation.text}, K = {params.K:.6g}, {widths}"
+            scenes[name] = Scene(name, title, params, trail=trail, points=points, steps=steps)
+    p = paper.FIG4
     scenes["fig4"] = Scene(
         "fig4",
-        "Fig. 4: K = 3, b1 = 0.226, b2 = 0.02 (only the R island exists)",
-        MapParams(3.0, 0.226, 0.02),
+        f"Fig. 4: K = {p.K:g}, b1 = {p.b1}, b2 = {p.b2} (only the R island exists)",
+        p,
         trail=False,
         points=50_000,
         steps=2_000,
@@ -164,13 +141,11 @@ def record_scene(
     return sink
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:
-        raise ValueError(message)
-
-
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="python -m viz scenes", description=__doc__.splitlines()[0])
+def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
+    """The options of ``python -m viz scenes``."""
+    parser = argparse.ArgumentParser(
+        prog=command_name("scenes") if prog is None else prog, description=__doc__.splitlines()[0]
+    )
     parser.add_argument("-o", "--out-dir", default=None, help="folder for NAME.rrd (created if missing)")
     parser.add_argument(
         "--only", nargs="+", metavar="NAME", help=f"scenes to record (default all: {', '.join(SCENES)})"
@@ -190,45 +165,45 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Entry point; returns the exit status (2 with one line on stderr for bad input)."""
-    try:
-        args = build_parser().parse_args(argv)
-        if args.list:
-            for scene in SCENES.values():
-                print(f"{scene.name:6s} {scene.title}")
-            return 0
-        if args.out_dir is None:
-            raise ValueError("give -o DIR (the folder for the .rrd files), or --list")
-        names = args.only or list(SCENES)
-        unknown = [n for n in names if n not in SCENES]
-        if unknown:
-            raise ValueError(f"unknown scene {unknown[0]!r}; choose from {', '.join(SCENES)}")
-        for flag, value in (("--points", args.points), ("--steps", args.steps)):
-            if value is not None and value < 1:
-                raise ValueError(f"{flag} = {value} is outside the allowed range >= 1")
-        if args.seed < 0:
-            raise ValueError(f"--seed = {args.seed} is outside the allowed range >= 0")
-        require_rerun()
-        folder = Path(args.out_dir)
-        folder.mkdir(parents=True, exist_ok=True)
-        paths = {name: check_new_file(folder / f"{name}.rrd") for name in names}  # all before any work
-        for name in names:
-            start = time.perf_counter()
-            sink = record_scene(
-                SCENES[name],
-                paths[name],
-                points=args.points,
-                steps=args.steps,
-                seed=args.seed,
-                color_by=args.color,
-                spawn=args.spawn,
-            )
-            print(f"wrote {paths[name]}: {len(sink.frames)} frames in {time.perf_counter() - start:.1f} s")
+def _record(args: argparse.Namespace) -> int:
+    if args.list:
+        for scene in SCENES.values():
+            print(f"{scene.name:6s} {scene.title}")
         return 0
-    except (ValueError, OSError, ImportError) as exc:
-        print(f"viz scenes: error: {exc}", file=sys.stderr)
-        return 2
+    if args.out_dir is None:
+        raise ValueError("give -o DIR (the folder for the .rrd files), or --list")
+    names = args.only or list(SCENES)
+    unknown = [n for n in names if n not in SCENES]
+    if unknown:
+        raise ValueError(f"unknown scene {unknown[0]!r}; choose from {', '.join(SCENES)}")
+    for flag, value in (("--points", args.points), ("--steps", args.steps)):
+        if value is not None and value < 1:
+            raise ValueError(f"{flag} = {value} is outside the allowed range >= 1")
+    if args.seed < 0:
+        raise ValueError(f"--seed = {args.seed} is outside the allowed range >= 0")
+    require_rerun()
+    folder = Path(args.out_dir)
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = {name: check_new_file(folder / f"{name}.rrd") for name in names}  # all before any work
+    for name in names:
+        start = time.perf_counter()
+        sink = record_scene(
+            SCENES[name],
+            paths[name],
+            points=args.points,
+            steps=args.steps,
+            seed=args.seed,
+            color_by=args.color,
+            spawn=args.spawn,
+        )
+        print(f"wrote {paths[name]}: {len(sink.frames)} frames in {time.perf_counter() - start:.1f} s")
+    return 0
+
+
+def main(argv: list[str] | None = None, prog: str | None = None) -> int:
+    """Entry point; returns the exit status (2 with one line on stderr for bad input, 130 after Ctrl-C)."""
+    kept = "the scene being recorded holds the frames written so far"
+    return run(build_parser(prog), argv, _record, interrupted=kept)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -1,0 +1,108 @@
+"""``python -m viz``: help, bad input, Ctrl-C, and the name it installs under (issue 14, items 6-7)."""
+
+from __future__ import annotations
+
+import ast
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from warpratchet.sweep import read_sweep
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _viz(*args: str, cwd: Path = ROOT, package: str = "viz") -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, "-m", package, *args], cwd=cwd, capture_output=True, text=True, timeout=300
+    )
+
+
+def test_help_exits_0_and_names_every_command():
+    done = _viz("--help")
+    assert done.returncode == 0, done.stderr
+    for command in ("figures", "scenes", "record", "report"):
+        assert command in done.stdout
+    assert _viz("figures", "--help").returncode == 0
+
+
+@pytest.mark.parametrize("args", [(), ("bogus",)])
+def test_missing_or_unknown_command_is_a_usage_error(args):
+    done = _viz(*args)
+    assert done.returncode == 2
+    assert done.stderr.startswith("usage: python -m viz") and "Traceback" not in done.stderr
+    assert done.stderr.strip().splitlines()[-1].startswith("python -m viz: error: ")
+
+
+def test_ctrl_c_in_figures_prints_one_line_and_exits_130(tmp_path):
+    """SIGINT to a real process in the middle of a sweep: one line, status 130, the sweep file kept."""
+    out = tmp_path / "figures"
+    argv = [sys.executable, "-m", "viz", "figures", "--only", "fig7", "--out", str(out), "--quiet"]
+    # Fig. 7 at the paper's settings takes minutes; the interrupt lands in the first points.
+    proc = subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        # The sweep file appears once the command has parsed its options and started the sweep.
+        while not (out / "sweeps" / "fig7.h5").exists():
+            assert proc.poll() is None, proc.communicate()
+            assert time.monotonic() < deadline, "the sweep never started"
+            time.sleep(0.1)
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGINT)
+        stdout, stderr = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, stderr
+    assert stderr.strip().splitlines() == [
+        "python -m viz figures: interrupted; finished sweep points are kept in the sweep files and reused "
+        "by the next run"
+    ]
+    assert len(read_sweep(out / "sweeps" / "fig7.h5")) < 33  # readable, and interrupted early
+    assert not list(out.glob("fig7.*"))
+
+
+def test_installed_under_its_own_name(tmp_path):
+    """The installed package is warpratchet_viz; outside the checkout there is no top-level viz."""
+    done = _viz("--help", cwd=tmp_path, package="warpratchet_viz")
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith("usage: python -m warpratchet_viz")
+    absent = subprocess.run(
+        [sys.executable, "-c", "import viz"], cwd=tmp_path, capture_output=True, text=True, timeout=60
+    )
+    assert absent.returncode != 0 and "No module named 'viz'" in absent.stderr
+
+
+def test_package_list_maps_every_package_folder():
+    """pyproject.toml lists packages by hand (setuptools cannot rename found ones): none may be missing."""
+    try:
+        import tomllib
+    except ImportError:  # Python 3.10: pytest itself depends on tomli there
+        import tomli as tomllib
+
+    config = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))["tool"]["setuptools"]
+    folders = {"warpratchet_viz": "viz"}
+    assert config["package-dir"] == folders
+    listed = set(config["packages"])
+    found = set()
+    for top, folder in (("warpratchet", "warpratchet"), ("warpratchet_viz", "viz")):
+        for init in (ROOT / folder).rglob("__init__.py"):
+            parts = init.parent.relative_to(ROOT / folder).parts
+            found.add(".".join((top, *parts)))
+    assert listed == found
+    assert not any(name == "viz" or name.startswith("viz.") for name in listed)
+
+
+def test_viz_imports_itself_relatively():
+    """Absolute ``viz`` imports would break under the installed name warpratchet_viz."""
+    for path in (ROOT / "viz").rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                names = [node.module or ""]
+            assert not [n for n in names if n == "viz" or n.startswith("viz.")], f"{path}: {names}"
