@@ -27,7 +27,7 @@ from warpratchet.recording import (
     VIRIDIS,
     PhaseSpaceRecording,
     RecordingSink,
-    classify,
+    class_ids,
     frame_every,
     ftle_colors,
     require_rerun,
@@ -114,10 +114,10 @@ def test_ftle_colors_are_a_log_scale_clipped_to_the_range():
     np.testing.assert_array_equal(colors[6], VIRIDIS[0])
 
 
-def test_classify_follows_sec_3c():
+def test_class_ids_follow_sec_3c():
     ftle = np.array([0.5, 0.0, 0.0, 0.0, 0.0, 0.01, 0.5])
     acc = np.array([1.0, 0.98, -1.01, 0.02, 2.1, 0.0, -1.0])
-    ids = classify(ftle, acc, threshold=0.1)
+    ids = class_ids(ftle, acc, threshold=0.1)
     assert ids.tolist() == [1, 2, 3, 4, 5, 4, 1]
     assert CLASSES[2][0].startswith("L") and CLASSES[3][0].startswith("R")  # w = +1 is L, -1 is R
 
@@ -284,7 +284,7 @@ def test_replay_of_an_archive_equals_its_snapshots_and_series(tmp_path, capsys):
     assert record_main([str(h5), "-o", str(rrd_class), "--color", "class", "--trail"]) == 0
     frames = cloud_frames(read_rrd(rrd_class))
     np.testing.assert_array_equal(
-        frames[400]["class_ids"], classify(snaps.ftle[-1], snaps.A[-1], default_lyapunov_threshold(400))
+        frames[400]["class_ids"], class_ids(snaps.ftle[-1], snaps.A[-1], default_lyapunov_threshold(400))
     )
     verify(rrd_class)
 
