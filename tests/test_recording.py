@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import run_argv
 
 from warpratchet import Ensemble, MapParams, theory
 from warpratchet.cli import main as cli_main
@@ -232,9 +233,8 @@ def test_subsample_is_fixed_and_capped(tmp_path):
 
 def test_cli_run_writes_a_recording(tmp_path, capsys):
     path = tmp_path / "run.rrd"
-    argv = ["run", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--points", "2000", "--steps", "600",
-            "--rerun", str(path), "--rerun-every", "150", "--rerun-points", "400",
-            "--quiet", "--json"]  # fmt: skip
+    argv = run_argv("--points", "2000", "--steps", "600", "--rerun", str(path), "--rerun-every", "150",
+                    "--rerun-points", "400", "--quiet", "--json")  # fmt: skip
     assert cli_main(argv) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["recording"] == str(path)
@@ -254,8 +254,8 @@ def test_replay_of_an_archive_equals_its_snapshots_and_series(tmp_path, capsys):
     from warpratchet.archive import open_archive
 
     h5, rrd_path = tmp_path / "run.h5", tmp_path / "run.rrd"
-    argv = ["run", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--points", "1500", "--steps", "400",
-            "--out", str(h5), "--snapshot-every", "100", "--snapshot-points", "300", "--quiet"]  # fmt: skip
+    argv = run_argv("--points", "1500", "--steps", "400", "--out", str(h5), "--snapshot-every", "100",
+                    "--snapshot-points", "300", "--quiet")  # fmt: skip
     assert cli_main(argv) == 0
     assert record_main([str(h5), "-o", str(rrd_path)]) == 0
     assert "4 frames" in capsys.readouterr().out
@@ -346,20 +346,7 @@ def test_existing_files_are_never_overwritten(tmp_path, capsys):
         RecordingSink(path)
     with pytest.raises(FileExistsError):
         PhaseSpaceRecording(PARAMS, path)
-    argv = [
-        "run",
-        "--K",
-        "3",
-        "--b1",
-        "0.1",
-        "--b2",
-        "0.01",
-        "--steps",
-        "10",
-        "--rerun",
-        str(path),
-        "--quiet",
-    ]
+    argv = run_argv("--steps", "10", "--rerun", str(path), "--quiet")
     assert cli_main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "refusing to overwrite" in err
@@ -387,7 +374,7 @@ def test_bad_recording_options_name_the_value(tmp_path, capsys):
         PhaseSpaceRecording(PARAMS, tmp_path / "x.rrd", ftle_range=(1.0, 0.1))
     with pytest.raises(ValueError, match="needs a path"):
         PhaseSpaceRecording(PARAMS)
-    argv = ["run", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--rerun-every", "5"]
+    argv = run_argv("--rerun-every", "5")
     assert cli_main(argv) == 2
     assert "--rerun-every needs --rerun PATH" in capsys.readouterr().err
 
@@ -398,19 +385,7 @@ def test_missing_rerun_is_a_clear_error(tmp_path, monkeypatch, capsys):
         require_rerun()
     with pytest.raises(ImportError, match="rerun-sdk is not installed"):
         RecordingSink(tmp_path / "x.rrd")
-    argv = [
-        "run",
-        "--K",
-        "3",
-        "--b1",
-        "0.1",
-        "--b2",
-        "0.01",
-        "--steps",
-        "10",
-        "--rerun",
-        str(tmp_path / "y.rrd"),
-    ]
+    argv = run_argv("--steps", "10", "--rerun", str(tmp_path / "y.rrd"))
     assert cli_main(argv) == 2
     assert capsys.readouterr().err == f"warpratchet: error: {RERUN_MISSING}\n"
     assert not (tmp_path / "y.rrd").exists()
