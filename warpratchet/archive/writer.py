@@ -11,6 +11,9 @@ How it stays consistent (a kill can land between any two writes):
   checkpoint: its ``step`` is set to -1, the state written, flushed and fsynced, then ``step``
   and the ``current`` pointer are written. The previous checkpoint stays intact until a newer
   one is complete;
+* every raw chunk carries a Fletcher-32 checksum (:mod:`.layout`) and, with ``libver="latest"``,
+  every piece of HDF5 metadata carries its own: flipped bytes give an error, never silently
+  wrong numbers;
 * a new file is built under a temporary name and published with ``link`` (or ``replace`` for
   ``force=True``), so the path never holds half an archive (:mod:`warpratchet._files`).
   :meth:`ArchiveSink.resume` rebuilds the archive the same way from its newest good checkpoint
