@@ -26,31 +26,28 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
+from _sink_overhead import compare, emit, log, measure_cases, options, warm_up
 
-from warpratchet import Ensemble, MapParams, Observer
+from warpratchet import Observer
 from warpratchet.archive import ArchiveSink
-from warpratchet.ensemble import STATE_FIELDS
 
-PARAMS = MapParams(K=3.0, b1=0.1, b2=0.01)
-INIT, SEED = "strip", 1
 BUDGET = 1.05
 #: (points, steps): the CLI default first, then larger ensembles (1.2e9 - 2.4e9 point-steps).
 CASES = [(10_000, 120_000), (100_000, 12_000), (1_000_000, 2_400)]
 QUICK_CASES = [(10_000, 20_000), (100_000, 2_000)]
-
-
-def _log(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
+#: The text table: (header, key, format).
+COLUMNS = [
+    ("points", "points", "d"), ("steps", "steps", "d"), ("chunk", "chunk_steps", "d"), ("rows", "rows", "d"),
+    ("plain s", "plain_seconds", ".3f"), ("archived s", "archived_seconds", ".3f"),
+    ("wall x", "wall_ratio", ".3f"), ("cpu x", "cpu_ratio", ".3f"),
+    ("sink/kernel", "sink_share_of_kernel", ".2f%"), ("same", "identical", "yes"),
+]  # fmt: skip
 
 
 class Timed(Observer):
@@ -77,76 +74,56 @@ class Timed(Observer):
         self._time(self.sink.end, ensemble)
 
 
-def measure(points: int, steps: int, repeats: int, folder: Path) -> dict[str, Any]:
-    """Best-of-``repeats`` wall and CPU times with and without the archive, alternating."""
-    plain, archived, plain_cpu, archived_cpu, shares = [], [], [], [], []
-    identical = True
-    rows = checkpoints = size = chunk = 0
-    for rep in range(repeats):
-        ens = Ensemble.sample(PARAMS, points, INIT, SEED)
-        wall, cpu = time.perf_counter(), time.process_time()
-        ens.run(steps)
-        plain.append(time.perf_counter() - wall)
-        plain_cpu.append(time.process_time() - cpu)
-        reference = ens.state()
+def measure(points: int, steps: int, repeat: int, folder: Path) -> dict[str, Any]:
+    """Best-of-``repeat`` wall and CPU times with and without the archive, alternating."""
 
-        ens = Ensemble.sample(PARAMS, points, INIT, SEED)
+    def archived(ens, rep: int) -> dict[str, Any]:
         path = folder / f"run{points}_{rep}.h5"
-        wall, cpu = time.perf_counter(), time.process_time()
+        start = time.perf_counter()
         sink = ArchiveSink(path, ens)
-        created = time.perf_counter() - wall
+        created = time.perf_counter() - start
         timed = Timed(sink)
         ens.run(steps, [timed], chunk_steps=sink.chunk_steps)
         start = time.perf_counter()
         sink.close()
         closing = time.perf_counter() - start
-        archived.append(time.perf_counter() - wall)
-        archived_cpu.append(time.process_time() - cpu)
-        shares.append((created + timed.seconds + closing) / timed.kernel)
-        state = ens.state()
-        identical &= all(np.array_equal(state[k], reference[k]) for k in STATE_FIELDS)
-        rows = sink._series.count
-        checkpoints = steps // sink.checkpoint_every + (steps % sink.checkpoint_every != 0)
-        chunk = sink.chunk_steps
-        size = os.path.getsize(path)
-        path.unlink()
-        _log(
-            f"  {points} x {steps}: plain {plain[-1]:.3f} s, archived {archived[-1]:.3f} s, "
-            f"sink {100 * shares[-1]:.2f}% of kernel"
-        )
-    ratio = min(archived) / min(plain)
+        return {
+            "path": path,
+            "share": (created + timed.seconds + closing) / timed.kernel,
+            "rows": sink._series.count,
+            "checkpoints": steps // sink.checkpoint_every + (steps % sink.checkpoint_every != 0),
+            "chunk_steps": sink.chunk_steps,
+        }
+
+    def remove(info: dict[str, Any]) -> None:
+        info["file_bytes"] = os.path.getsize(info["path"])
+        info.pop("path").unlink()
+
+    t = compare(points, steps, repeat, archived, remove)
+    last = t["measured"][-1]
+    shares = [info["share"] for info in t["measured"]]
+    log(f"  sink {100 * min(shares):.2f}% of the kernel time (best)")
     return {
         "points": points,
         "steps": steps,
-        "chunk_steps": chunk,
-        "rows": rows,
-        "checkpoints": checkpoints,
-        "file_bytes": size,
-        "plain_seconds": min(plain),
-        "archived_seconds": min(archived),
-        "wall_ratio": ratio,
-        "cpu_ratio": min(archived_cpu) / min(plain_cpu),
+        "chunk_steps": last["chunk_steps"],
+        "rows": last["rows"],
+        "checkpoints": last["checkpoints"],
+        "file_bytes": last["file_bytes"],
+        "plain_seconds": t["plain"],
+        "archived_seconds": t["sink"],
+        "wall_ratio": t["sink"] / t["plain"],
+        "cpu_ratio": t["sink_cpu"] / t["plain_cpu"],
         "sink_share_of_kernel": min(shares),
-        "identical": identical,
+        "identical": t["identical"],
     }
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeat", type=int, default=3, help="timings per case, best kept (default 3)")
-    parser.add_argument("--quick", action="store_true", help="small cases, one repetition (smoke test)")
-    parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
-    args = parser.parse_args(argv)
-    if args.repeat < 1:
-        parser.error(f"--repeat {args.repeat} is outside the allowed range >= 1")
+    args, repeat = options(__doc__, argv, repeat=3)
+    warm_up()
     cases = QUICK_CASES if args.quick else CASES
-    repeats = 1 if args.quick else args.repeat
-    Ensemble.sample(PARAMS, 64, INIT, SEED).run(16)  # compile/load the kernel outside the timings
-    results = []
-    with tempfile.TemporaryDirectory(prefix="warpratchet-archive-bench-") as folder:
-        for points, steps in cases:
-            _log(f"{points} points x {steps} steps")
-            results.append(measure(points, steps, repeats, Path(folder)))
+    results = measure_cases(cases, repeat, measure, "warpratchet-archive-bench-")
     default = results[0]
     report = {
         "budget": BUDGET,
@@ -156,21 +133,7 @@ def main(argv: list[str] | None = None) -> int:
         "quick": args.quick,
         "cases": results,
     }
-    if args.json:
-        print(json.dumps(report))
-    else:
-        print(
-            f"{'points':>9} {'steps':>8} {'chunk':>6} {'rows':>5} {'plain s':>8} {'archived s':>10} "
-            f"{'wall x':>7} {'cpu x':>6} {'sink/kernel':>11} {'same':>5}"
-        )
-        for r in results:
-            print(
-                f"{r['points']:>9} {r['steps']:>8} {r['chunk_steps']:>6} {r['rows']:>5} "
-                f"{r['plain_seconds']:>8.3f} {r['archived_seconds']:>10.3f} {r['wall_ratio']:>7.3f} "
-                f"{r['cpu_ratio']:>6.3f} {100 * r['sink_share_of_kernel']:>10.2f}% "
-                f"{'yes' if r['identical'] else 'NO':>5}"
-            )
-        print(f"budget at the default settings: wall ratio <= {BUDGET}")
+    emit(report, args.json, COLUMNS, f"budget at the default settings: wall ratio <= {BUDGET}")
     return 0 if all(r["identical"] for r in results) else 1
 
 

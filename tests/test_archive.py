@@ -17,6 +17,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from support import Capture, assert_one_line_error, cli, refused, run_argv, same_state
 
 from warpratchet import Ensemble, MapParams, Observer, open_archive, summarize
 from warpratchet.archive import (
@@ -28,7 +29,6 @@ from warpratchet.archive import (
     schedule,
 )
 from warpratchet.cli import main
-from warpratchet.ensemble import STATE_FIELDS
 
 PARAMS = MapParams(3.0, 0.1, 0.01)
 POINTS = 300
@@ -38,19 +38,6 @@ DOC = Path(__file__).resolve().parents[1] / "docs" / "archive.md"
 SCHEDULE = {"snapshot_every": 200, "snapshot_points": 40, "checkpoint_every": 400, "chunk_steps": 100}
 #: Series columns that depend on the machine, not on the dynamics.
 CLOCKS = ("wall_time", "unix_time")
-
-
-class Capture(Observer):
-    """Copies of the state after every chunk, keyed by step (the reference for checkpoints)."""
-
-    def __init__(self) -> None:
-        self.states: dict[int, dict[str, np.ndarray]] = {}
-
-    def begin(self, ensemble, target_step):
-        self.states[ensemble.step] = ensemble.state()
-
-    def after_chunk(self, ensemble, seconds):
-        self.states[ensemble.step] = ensemble.state()
 
 
 def fresh() -> Ensemble:
@@ -66,25 +53,8 @@ def record(path, steps, *, run_steps=None, **kw):
     return ens, cap.states
 
 
-def same_state(a: dict, b: dict) -> bool:
-    return all(np.array_equal(a[k], b[k]) for k in STATE_FIELDS)
-
-
 def same_series(a: dict, b: dict) -> bool:
     return all(np.array_equal(a[k], b[k], equal_nan=True) for k in SERIES_FIELDS if k not in CLOCKS)
-
-
-def cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "warpratchet.cli", *args], capture_output=True, text=True, timeout=120
-    )
-
-
-def assert_one_line_error(proc: subprocess.CompletedProcess) -> None:
-    assert proc.returncode == 2, proc.stderr
-    assert "Traceback" not in proc.stderr
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("warpratchet: error:"), proc.stderr
 
 
 @pytest.fixture(scope="module")
@@ -230,22 +200,7 @@ def test_refuses_to_overwrite_and_force_replaces(tmp_path):
     with pytest.raises(ArchiveError, match="exists; refusing to overwrite"):
         ArchiveSink(path, fresh())
     assert path.read_bytes() == b"user data"
-    proc = cli(
-        "run",
-        "--K",
-        "3",
-        "--b1",
-        "0.1",
-        "--b2",
-        "0.01",
-        "--points",
-        "10",
-        "--steps",
-        "10",
-        "--out",
-        str(path),
-        "--quiet",
-    )
+    proc = cli(*run_argv("--points", "10", "--steps", "10", "--out", str(path), "--quiet"))
     assert_one_line_error(proc)
     assert "--force" in proc.stderr and path.read_bytes() == b"user data"
     ArchiveSink(path, fresh(), force=True).close()
@@ -452,28 +407,9 @@ def test_damaged_checkpoint_falls_back_to_the_previous_one(tmp_path, archived):
 # -- command line ---------------------------------------------------------------------------------
 def test_cli_run_resume_inspect(tmp_path, capsys):
     path = str(tmp_path / "cli.h5")
-    base = ["--K", "3", "--b1", "0.1", "--b2", "0.01", "--points", "200", "--seed", "4"]
-    assert (
-        main(
-            [
-                "run",
-                *base,
-                "--steps",
-                "600",
-                "--out",
-                path,
-                "--snapshot-every",
-                "200",
-                "--snapshot-points",
-                "20",
-                "--checkpoint-every",
-                "400",
-                "--quiet",
-                "--json",
-            ]
-        )
-        == 0
-    )
+    run = run_argv("--points", "200", "--seed", "4", "--steps", "600", "--out", path)
+    schedule_flags = ["--snapshot-every", "200", "--snapshot-points", "20", "--checkpoint-every", "400"]
+    assert main([*run, *schedule_flags, "--quiet", "--json"]) == 0
     first = json.loads(capsys.readouterr().out)
     assert first["archive"] == path and first["steps"] == 600
     assert main(["resume", path, "--steps", "1000", "--K", "3", "--points", "200", "--quiet", "--json"]) == 0
@@ -501,26 +437,9 @@ def test_cli_run_resume_inspect(tmp_path, capsys):
         ),
         (["resume", "{path}", "--steps", "900", "--seed", "1"], "--seed 1 disagrees"),
         (["resume", "{missing}", "--steps", "900"], "no such archive"),
+        (run_argv("--snapshot-every", "5"), "--snapshot-every needs --out"),
         (
-            ["run", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--snapshot-every", "5"],
-            "--snapshot-every needs --out",
-        ),
-        (
-            [
-                "run",
-                "--K",
-                "3",
-                "--b1",
-                "0.1",
-                "--b2",
-                "0.01",
-                "--out",
-                "{new}",
-                "--chunk-steps",
-                "300",
-                "--checkpoint-every",
-                "1000",
-            ],
+            run_argv("--out", "{new}", "--chunk-steps", "300", "--checkpoint-every", "1000"),
             "chunk_steps = 300 must divide checkpoint_every = 1000",
         ),
         (["inspect", "{missing}"], "no such archive"),
@@ -531,9 +450,7 @@ def test_cli_refusals(tmp_path, capsys, args, message):
     record(path, 600, chunk_steps=200)
     before = path.read_bytes()
     fill = {"path": str(path), "missing": str(tmp_path / "nope.h5"), "new": str(tmp_path / "new.h5")}
-    assert main([a.format(**fill) for a in args]) == 2
-    err = capsys.readouterr().err
-    assert message in err and len(err.strip().splitlines()) == 1
+    assert message in refused(capsys, [a.format(**fill) for a in args])
     assert path.read_bytes() == before and not (tmp_path / "new.h5").exists()
 
 

@@ -22,8 +22,9 @@ import time
 
 import numpy as np
 import pytest
+from support import Capture
 
-from warpratchet import Ensemble, MapParams, Observer
+from warpratchet import Ensemble, MapParams
 from warpratchet.archive import SERIES_FIELDS, SNAPSHOT_FIELDS, Archive, ArchiveSink
 from warpratchet.ensemble import STATE_FIELDS
 
@@ -34,26 +35,12 @@ MIN_KILLS = 5
 CLOCKS = ("wall_time", "unix_time")
 
 
-class Capture(Observer):
-    """The state at every checkpoint step of the reference run."""
-
-    def __init__(self) -> None:
-        self.states: dict[int, dict[str, np.ndarray]] = {}
-
-    def begin(self, ensemble, target_step):
-        self.states[ensemble.step] = ensemble.state()
-
-    def after_chunk(self, ensemble, seconds):
-        if ensemble.step % CHECKPOINT == 0 or ensemble.step == STEPS:
-            self.states[ensemble.step] = ensemble.state()
-
-
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
     """The uninterrupted run, archived with the same settings: final state, checkpoints, rows."""
     path = tmp_path_factory.mktemp("ref") / "ref.h5"
     ens = Ensemble.sample(MapParams(K, B1, B2), POINTS, "strip", SEED)
-    cap = Capture()
+    cap = Capture(keep=lambda step: step % CHECKPOINT == 0 or step == STEPS)  # the checkpoint steps
     with ArchiveSink(
         path,
         ens,

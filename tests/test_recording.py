@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support import run_argv
 
 from warpratchet import Ensemble, MapParams, theory
 from warpratchet.cli import main as cli_main
@@ -27,7 +28,7 @@ from warpratchet.recording import (
     VIRIDIS,
     PhaseSpaceRecording,
     RecordingSink,
-    classify,
+    class_ids,
     frame_every,
     ftle_colors,
     require_rerun,
@@ -114,10 +115,10 @@ def test_ftle_colors_are_a_log_scale_clipped_to_the_range():
     np.testing.assert_array_equal(colors[6], VIRIDIS[0])
 
 
-def test_classify_follows_sec_3c():
+def test_class_ids_follow_sec_3c():
     ftle = np.array([0.5, 0.0, 0.0, 0.0, 0.0, 0.01, 0.5])
     acc = np.array([1.0, 0.98, -1.01, 0.02, 2.1, 0.0, -1.0])
-    ids = classify(ftle, acc, threshold=0.1)
+    ids = class_ids(ftle, acc, threshold=0.1)
     assert ids.tolist() == [1, 2, 3, 4, 5, 4, 1]
     assert CLASSES[2][0].startswith("L") and CLASSES[3][0].startswith("R")  # w = +1 is L, -1 is R
 
@@ -232,9 +233,8 @@ def test_subsample_is_fixed_and_capped(tmp_path):
 
 def test_cli_run_writes_a_recording(tmp_path, capsys):
     path = tmp_path / "run.rrd"
-    argv = ["run", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--points", "2000", "--steps", "600",
-            "--rerun", str(path), "--rerun-every", "150", "--rerun-points", "400",
-            "--quiet", "--json"]  # fmt: skip
+    argv = run_argv("--points", "2000", "--steps", "600", "--rerun", str(path), "--rerun-every", "150",
+                    "--rerun-points", "400", "--quiet", "--json")  # fmt: skip
     assert cli_main(argv) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["recording"] == str(path)
@@ -254,8 +254,8 @@ def test_replay_of_an_archive_equals_its_snapshots_and_series(tmp_path, capsys):
     from warpratchet.archive import open_archive
 
     h5, rrd_path = tmp_path / "run.h5", tmp_path / "run.rrd"
-    argv = ["run", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--points", "1500", "--steps", "400",
-            "--out", str(h5), "--snapshot-every", "100", "--snapshot-points", "300", "--quiet"]  # fmt: skip
+    argv = run_argv("--points", "1500", "--steps", "400", "--out", str(h5), "--snapshot-every", "100",
+                    "--snapshot-points", "300", "--quiet")  # fmt: skip
     assert cli_main(argv) == 0
     assert record_main([str(h5), "-o", str(rrd_path)]) == 0
     assert "4 frames" in capsys.readouterr().out
@@ -284,7 +284,7 @@ def test_replay_of_an_archive_equals_its_snapshots_and_series(tmp_path, capsys):
     assert record_main([str(h5), "-o", str(rrd_class), "--color", "class", "--trail"]) == 0
     frames = cloud_frames(read_rrd(rrd_class))
     np.testing.assert_array_equal(
-        frames[400]["class_ids"], classify(snaps.ftle[-1], snaps.A[-1], default_lyapunov_threshold(400))
+        frames[400]["class_ids"], class_ids(snaps.ftle[-1], snaps.A[-1], default_lyapunov_threshold(400))
     )
     verify(rrd_class)
 
@@ -346,20 +346,7 @@ def test_existing_files_are_never_overwritten(tmp_path, capsys):
         RecordingSink(path)
     with pytest.raises(FileExistsError):
         PhaseSpaceRecording(PARAMS, path)
-    argv = [
-        "run",
-        "--K",
-        "3",
-        "--b1",
-        "0.1",
-        "--b2",
-        "0.01",
-        "--steps",
-        "10",
-        "--rerun",
-        str(path),
-        "--quiet",
-    ]
+    argv = run_argv("--steps", "10", "--rerun", str(path), "--quiet")
     assert cli_main(argv) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "refusing to overwrite" in err
@@ -387,7 +374,7 @@ def test_bad_recording_options_name_the_value(tmp_path, capsys):
         PhaseSpaceRecording(PARAMS, tmp_path / "x.rrd", ftle_range=(1.0, 0.1))
     with pytest.raises(ValueError, match="needs a path"):
         PhaseSpaceRecording(PARAMS)
-    argv = ["run", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--rerun-every", "5"]
+    argv = run_argv("--rerun-every", "5")
     assert cli_main(argv) == 2
     assert "--rerun-every needs --rerun PATH" in capsys.readouterr().err
 
@@ -398,19 +385,7 @@ def test_missing_rerun_is_a_clear_error(tmp_path, monkeypatch, capsys):
         require_rerun()
     with pytest.raises(ImportError, match="rerun-sdk is not installed"):
         RecordingSink(tmp_path / "x.rrd")
-    argv = [
-        "run",
-        "--K",
-        "3",
-        "--b1",
-        "0.1",
-        "--b2",
-        "0.01",
-        "--steps",
-        "10",
-        "--rerun",
-        str(tmp_path / "y.rrd"),
-    ]
+    argv = run_argv("--steps", "10", "--rerun", str(tmp_path / "y.rrd"))
     assert cli_main(argv) == 2
     assert capsys.readouterr().err == f"warpratchet: error: {RERUN_MISSING}\n"
     assert not (tmp_path / "y.rrd").exists()

@@ -16,6 +16,7 @@ __all__ = [
     "lyapunov",
     "default_lyapunov_threshold",
     "chaotic_mask",
+    "mean_stderr",
     "Summary",
     "summarize",
 ]
@@ -89,7 +90,11 @@ class Summary:
         return asdict(self)
 
 
-def _mean_stderr(values: np.ndarray) -> tuple[float, float]:
+def mean_stderr(values: np.ndarray) -> tuple[float, float]:
+    """Mean of independent samples and its standard error ``std / sqrt(N)`` (ddof 1).
+
+    NaN for both when ``values`` is empty; the error is NaN for a single value.
+    """
     if values.size == 0:
         return math.nan, math.nan
     if values.size == 1:
@@ -111,7 +116,7 @@ def summarize(state: dict[str, np.ndarray], step: int, threshold: float | None =
         bad = int(np.count_nonzero(~np.isfinite(ftle)))
         raise FloatingPointError(f"{bad} tangent vectors overflowed; b1 or b2 is too small for float64")
     mask = ftle > threshold
-    a_mean, a_err = _mean_stderr(acceleration(state, step)[mask])
+    a_mean, a_err = mean_stderr(acceleration(state, step)[mask])
     chaotic_ftle = ftle[mask]
     return Summary(
         step=int(step),

@@ -1,0 +1,160 @@
+"""What archive_overhead.py and recording_overhead.py share: timing a run with and without a sink.
+
+Not a script. Each repetition advances a fresh strip ensemble (Eq. B) at K = 3, b1 = 0.1,
+b2 = 0.01 (seed 1) by ``steps`` iterations twice, first plainly (``Ensemble.run(steps)`` with
+the default chunking), then with the sink under test, and keeps the best wall and process CPU
+times of each: ratios taken within one run are the numbers to read on a shared machine. Both
+runs must end in bitwise equal states, since a sink never changes results.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from warpratchet import Ensemble, MapParams
+from warpratchet.ensemble import STATE_FIELDS
+
+PARAMS = MapParams(K=3.0, b1=0.1, b2=0.01)
+INIT, SEED = "strip", 1
+
+
+def log(message: str) -> None:
+    """Progress on stderr (stdout carries the table or the JSON)."""
+    print(message, file=sys.stderr, flush=True)
+
+
+def fresh(points: int) -> Ensemble:
+    return Ensemble.sample(PARAMS, points, INIT, SEED)
+
+
+def warm_up() -> None:
+    """Compile the kernel (or load it from the cache) outside the timings."""
+    fresh(64).run(16)
+
+
+def options(doc: str, argv: list[str] | None, repeat: int) -> tuple[argparse.Namespace, int]:
+    """The common options, parsed: ``--repeat N`` (best of N; default ``repeat``, 1 with
+    ``--quick``), ``--quick``, ``--json``. Returns the arguments and the repetitions."""
+    p = argparse.ArgumentParser(description=doc.splitlines()[0])
+    p.add_argument(
+        "--repeat",
+        "--repeats",
+        dest="repeat",
+        type=int,
+        default=None,
+        help=f"timings per case, best kept (default {repeat}; 1 with --quick)",
+    )
+    p.add_argument("--quick", action="store_true", help="small cases, one repetition (smoke test)")
+    p.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    args = p.parse_args(argv)
+    if args.repeat is None:
+        return args, 1 if args.quick else repeat
+    if args.repeat < 1:
+        p.error(f"--repeat {args.repeat} is outside the allowed range >= 1")
+    return args, args.repeat
+
+
+def measure_cases(
+    cases: list[tuple[int, int]], repeat: int, measure: Callable[..., dict[str, Any]], prefix: str
+) -> list[dict[str, Any]]:
+    """``measure(points, steps, repeat, folder)`` of every case, writing into a temporary folder."""
+    results = []
+    with tempfile.TemporaryDirectory(prefix=prefix) as folder:
+        for points, steps in cases:
+            log(f"{points} points x {steps} steps")
+            results.append(measure(points, steps, repeat, Path(folder)))
+    return results
+
+
+def compare(
+    points: int,
+    steps: int,
+    repeats: int,
+    run_with_sink: Callable[[Ensemble, int], dict[str, Any]],
+    after: Callable[[dict[str, Any]], None] | None = None,
+) -> dict[str, Any]:
+    """Best-of-``repeats`` times of a plain run and of a run with the sink, alternating.
+
+    Parameters
+    ----------
+    run_with_sink : callable
+        ``run_with_sink(ensemble, rep)`` makes the sink, advances ``ensemble`` by ``steps`` with
+        it, closes it, and returns what it measured; all of it is inside the timing.
+    after : callable, optional
+        Called with that dict after the timing (e.g. to delete the file written).
+
+    Returns
+    -------
+    dict
+        ``plain``, ``plain_cpu``, ``sink``, ``sink_cpu`` (best seconds), ``identical`` (every
+        pair of runs ended in bitwise equal states) and ``measured`` (the dicts of every
+        repetition, in order).
+    """
+    plain, plain_cpu, sink, sink_cpu, measured = [], [], [], [], []
+    identical = True
+    for rep in range(repeats):
+        ens = fresh(points)
+        wall, cpu = time.perf_counter(), time.process_time()
+        ens.run(steps)
+        plain.append(time.perf_counter() - wall)
+        plain_cpu.append(time.process_time() - cpu)
+        reference = ens.state()
+        del ens
+
+        ens = fresh(points)
+        wall, cpu = time.perf_counter(), time.process_time()
+        info = run_with_sink(ens, rep)
+        sink.append(time.perf_counter() - wall)
+        sink_cpu.append(time.process_time() - cpu)
+        identical &= all(np.array_equal(reference[k], ens.array(k)) for k in STATE_FIELDS)
+        measured.append(info)
+        if after is not None:
+            after(info)
+        del ens
+        log(f"  {points} x {steps}: plain {plain[-1]:.3f} s, with the sink {sink[-1]:.3f} s")
+    return {
+        "plain": min(plain),
+        "plain_cpu": min(plain_cpu),
+        "sink": min(sink),
+        "sink_cpu": min(sink_cpu),
+        "identical": identical,
+        "measured": measured,
+    }
+
+
+def print_table(rows: list[dict[str, Any]], columns: list[tuple[str, str, str]]) -> None:
+    """A right-aligned text table: ``columns`` are ``(header, key, format spec)``; a spec ending
+    in ``%`` prints the value times 100 with a percent sign, ``"yes"`` prints yes or NO."""
+
+    def cell(row: dict[str, Any], key: str, spec: str) -> str:
+        value = row[key]
+        if spec == "yes":
+            return "yes" if value else "NO"
+        if spec.endswith("%"):
+            return f"{100 * value:{spec[:-1]}}%"
+        return f"{value:{spec}}"
+
+    widths = [max(len(header), *(len(cell(r, key, spec)) for r in rows)) for header, key, spec in columns]
+    print(" ".join(f"{header:>{w}}" for (header, _, _), w in zip(columns, widths, strict=True)))
+    for r in rows:
+        print(
+            " ".join(f"{cell(r, key, spec):>{w}}" for (_, key, spec), w in zip(columns, widths, strict=True))
+        )
+
+
+def emit(report: dict[str, Any], as_json: bool, columns: list[tuple[str, str, str]], note: str) -> None:
+    """The report as one JSON object on stdout, or its ``cases`` as a table followed by ``note``."""
+    if as_json:
+        print(json.dumps(report))
+        return
+    print_table(report["cases"], columns)
+    print(note)

@@ -1,0 +1,73 @@
+"""Helpers shared by the tests of archives, recordings, format fixtures and the CLI (not a test module).
+
+Import with ``from support import ...`` (pytest puts ``tests/`` on ``sys.path``).
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from collections.abc import Callable
+
+import numpy as np
+
+from warpratchet import Observer
+from warpratchet.ensemble import STATE_FIELDS
+
+#: The CLI flags of the map most tests use, MapParams(3.0, 0.1, 0.01) (domain LR, Eq. Aa).
+MAP_FLAGS = ("--K", "3", "--b1", "0.1", "--b2", "0.01")
+
+
+def run_argv(*flags: str) -> list[str]:
+    """``warpratchet run`` of the map :data:`MAP_FLAGS` with more ``flags``, as an argv list."""
+    return ["run", *MAP_FLAGS, *flags]
+
+
+def cli(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    """``warpratchet ARGS`` in a fresh process (``python -m warpratchet.cli``), output captured."""
+    return subprocess.run(
+        [sys.executable, "-m", "warpratchet.cli", *args], capture_output=True, text=True, timeout=timeout
+    )
+
+
+def assert_one_line_error(proc: subprocess.CompletedProcess) -> None:
+    """Bad input: exit 2, one line ``warpratchet: error: ...`` on stderr, no traceback."""
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warpratchet: error:"), proc.stderr
+
+
+def refused(capsys, argv: list[str]) -> str:
+    """``warpratchet ARGV`` in this process must refuse: exit 2 and one line on stderr (returned)."""
+    from warpratchet.cli import main
+
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert len(err.strip().splitlines()) == 1, err
+    return err
+
+
+class Capture(Observer):
+    """Copies of the state at the start of a run and after chunks, keyed by step.
+
+    ``keep(step)`` chooses the chunk ends to copy (default: all); the reference states that
+    checkpoints and resumed runs are compared with.
+    """
+
+    def __init__(self, keep: Callable[[int], bool] = lambda step: True) -> None:
+        self.keep = keep
+        self.states: dict[int, dict[str, np.ndarray]] = {}
+
+    def begin(self, ensemble, target_step):
+        self.states[ensemble.step] = ensemble.state()
+
+    def after_chunk(self, ensemble, seconds):
+        if self.keep(ensemble.step):
+            self.states[ensemble.step] = ensemble.state()
+
+
+def same_state(a: dict, b: dict) -> bool:
+    """Two ensemble states equal bit for bit in every field of ``STATE_FIELDS``."""
+    return all(np.array_equal(a[k], b[k]) for k in STATE_FIELDS)

@@ -1,0 +1,43 @@
+"""Crash-safe, resumable HDF5 archives of ensemble runs.
+
+Modelled on REBOUND's simulation archive: one HDF5 file per run that the run loop streams into
+after every chunk, that survives a kill at any moment, can be read while it is written, and
+from which a run continues *bit for bit* as if it had never stopped. The layout is documented
+name by name in ``docs/archive.md`` (format ``warpratchet-archive``, version
+:data:`FORMAT_VERSION`).
+
+One idea per module:
+
+* :mod:`.layout`: what an archive contains (format, names, attributes; the errors);
+* :mod:`.writer`: :class:`ArchiveSink`, the observer that writes it;
+* :mod:`.reader`: :func:`open_archive`, :class:`Archive`, :class:`Snapshots`;
+* :mod:`.resume`: what a resume keeps (used by :meth:`ArchiveSink.resume`);
+* :mod:`.chunking`: :func:`schedule` (chunk length, checkpoint interval) and :func:`run_to`.
+
+Atomic creation, locks, fsyncs and the HDF5 reader options are shared with the other writers
+in :mod:`warpratchet._files`.
+"""
+
+from .._files import SWMR_READ_ATTEMPTS
+from .chunking import CHECKPOINT_CHUNKS, MIN_ARCHIVE_CHUNK_STEPS, run_to, schedule
+from .layout import FORMAT, FORMAT_VERSION, SERIES_FIELDS, SNAPSHOT_FIELDS, ArchiveError, ArchiveWarning
+from .reader import Archive, Snapshots, open_archive
+from .writer import ArchiveSink
+
+__all__ = [
+    "FORMAT",
+    "FORMAT_VERSION",
+    "SERIES_FIELDS",
+    "SNAPSHOT_FIELDS",
+    "CHECKPOINT_CHUNKS",
+    "MIN_ARCHIVE_CHUNK_STEPS",
+    "SWMR_READ_ATTEMPTS",
+    "ArchiveError",
+    "ArchiveWarning",
+    "Archive",
+    "Snapshots",
+    "ArchiveSink",
+    "open_archive",
+    "schedule",
+    "run_to",
+]

@@ -1,0 +1,47 @@
+"""Rerun recordings of the phase-space cloud: watch an ensemble fill the chaotic region.
+
+One idea per module:
+
+* :mod:`.scene`: what a recording shows (entity paths, colours, classes, the default blueprint);
+* :mod:`.stream`: :class:`PhaseSpaceRecording`, one recording written to a file or a viewer;
+* :mod:`.sink`: :class:`RecordingSink`, the observer that records a run as it goes.
+
+rerun-sdk is an optional dependency (``pip install 'warpratchet[rerun]'``), imported only when a
+recording is opened. Replays of an archive's snapshots live in ``viz/record.py``.
+"""
+
+from .scene import (
+    CLASSES,
+    CLOUD_PATH,
+    COLOR_BY,
+    RERUN_MISSING,
+    SERIES_KEYS,
+    THEORY_PATH,
+    VIRIDIS,
+    class_ids,
+    ftle_colors,
+    require_rerun,
+    torus_positions,
+)
+from .sink import DEFAULT_MAX_FRAMES, DEFAULT_MAX_POINTS, RecordingSink, frame_every
+from .stream import PhaseSpaceRecording, check_new_file
+
+__all__ = [
+    "RERUN_MISSING",
+    "require_rerun",
+    "VIRIDIS",
+    "ftle_colors",
+    "CLASSES",
+    "COLOR_BY",
+    "class_ids",
+    "torus_positions",
+    "SERIES_KEYS",
+    "THEORY_PATH",
+    "CLOUD_PATH",
+    "DEFAULT_MAX_POINTS",
+    "DEFAULT_MAX_FRAMES",
+    "frame_every",
+    "check_new_file",
+    "PhaseSpaceRecording",
+    "RecordingSink",
+]
