@@ -1,0 +1,384 @@
+"""Periodic orbits (warpratchet.orbits): closed forms, an independent brute force, the kernel
+arithmetic, the Jacobians, the island census and the exact areas at K = 3.
+
+The brute force and the exact map below are written here from Eqs. (cpem) and (fx) alone,
+without the module's search, cells or integer arithmetic.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+from collections import defaultdict
+from fractions import Fraction
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from warpratchet import MapParams, reference, theory
+from warpratchet.orbits import (
+    KINDS,
+    enumerate_orbits,
+    format_orbits,
+    orbit_families,
+    orbits_report,
+    periodic_orbits,
+)
+from warpratchet.sumrule import census
+
+U = 2.0**-53
+K3 = MapParams(3.0, 0.1, 0.01)  # domain LR; the right strip is steep (1 + K l2 ~ 141)
+K299 = MapParams(2.99, 0.25, 0.05)  # Fig. 9's path: islands with nu = +-1/3, +-2/3
+OTHER = MapParams(1.7, 0.2, 0.3)  # weak kicks
+
+
+# -- an independent exact map: Fractions straight from Eqs. (cpem), (fx) -------------------------------
+class FractionMap:
+    """The torus map with the float64 coefficients of ``p`` (as the kernels use them), in Fractions."""
+
+    def __init__(self, p: MapParams):
+        self.K, self.b1, self.right = Fraction(p.K), Fraction(p.b1), Fraction(1.0 - p.b2)
+        self.l1, self.l2, self.c = Fraction(p.l1), Fraction(p.l2), Fraction(p.c)
+
+    def force(self, x):
+        if x <= self.b1:
+            return self.l1 * x
+        if x < self.right:
+            return self.c - x
+        return self.l2 * (x - 1)
+
+    def step(self, x, q):
+        """``(x', q', piece, k, j)``."""
+        piece = 0 if x <= self.b1 else (1 if x < self.right else 2)
+        t = q + self.K * self.force(x)
+        k = math.floor(t)
+        q1 = t - k
+        j = 1 if x + q1 >= 1 else 0
+        return x + q1 - j, q1, piece, k, j
+
+
+def brute_force(p: MapParams, m: int) -> set[frozenset]:
+    """Every orbit of exact period ``m``, from all ``30^m`` words (not only least rotations).
+
+    Float64 prefilter: the fixed point of each rotation of each word must lie in the cell of
+    the rotation's first symbol, up to a computed bound on the float solve's error,
+    ``64 u ||(A - I)^-1|| (||A|| + ||b|| + 1)``. Then an exact solve and exact iteration
+    (:class:`FractionMap`) decide.
+    Degenerate words (``det(A - I) = 0``, families) are left out. Returns the cycles as
+    frozensets of exact points.
+    """
+    symbols = np.array(list(itertools.product(range(3), range(-2, 3), range(2))))  # (piece, k, j)
+    words = np.array(list(itertools.product(range(30), repeat=m)))
+    n = len(words)
+    a = np.array([p.l1, -1.0, p.l2])
+    d = np.array([0.0, p.c, -p.l2])
+    right = 1.0 - p.b2
+    keep = np.ones(n, dtype=bool)
+    for r in range(m):  # rotation r starts with symbol r
+        A = np.broadcast_to(np.eye(2), (n, 2, 2)).copy()
+        b = np.zeros((n, 2))
+        for i in range(m):
+            s, k, j = symbols[words[:, (r + i) % m]].T
+            ka, kd = p.K * a[s], p.K * d[s]
+            S = np.stack([np.stack([1 + ka, np.ones(n)], -1), np.stack([ka, np.ones(n)], -1)], -2)
+            A = S @ A
+            b = np.einsum("nij,nj->ni", S, b) + np.stack([kd - k - j, kd - k], -1)
+        M = A - np.eye(2)
+        det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            x = -(M[:, 1, 1] * b[:, 0] - M[:, 0, 1] * b[:, 1]) / det
+            q = -(-M[:, 1, 0] * b[:, 0] + M[:, 0, 0] * b[:, 1]) / det
+            inverse_norm = (np.abs(M).sum(-1).max(-1) + 1.0) / np.abs(det)
+        # z = -(A - I)^-1 b with A, b good to ~m u |A|, u |b| (z in the unit square):
+        tol = 64 * U * inverse_norm * (np.abs(A).sum(-1).max(-1) + np.abs(b).max(-1) + 1)
+        s, k, j = symbols[words[:, r]].T
+        ka, kd = p.K * a[s], p.K * d[s]
+        with np.errstate(invalid="ignore"):  # nan where det = 0, dropped below
+            t = q + ka * x + kd
+        in_piece = np.where(
+            s == 0,
+            x <= p.b1 + tol,
+            np.where(s == 1, (x >= p.b1 - tol) & (x <= right + tol), x >= right - tol),
+        )
+        xs = x + t - k
+        keep &= (np.abs(det) > 0) & (x >= -tol) & (x <= 1 + tol) & (q >= -tol) & (q <= 1 + tol) & in_piece
+        keep &= (t >= k - tol) & (t <= k + 1 + tol) & np.where(j == 0, xs <= 1 + tol, xs >= 1 - tol)
+    fm = FractionMap(p)
+    found = set()
+    for word in words[keep]:
+        steps = [symbols[w] for w in word]
+        A = [[Fraction(1), Fraction(0)], [Fraction(0), Fraction(1)]]
+        b = [Fraction(0), Fraction(0)]
+        for s, k, j in steps:
+            ka = fm.K * (fm.l1 if s == 0 else (-1 if s == 1 else fm.l2))
+            kd = fm.K * (0 if s == 0 else (fm.c if s == 1 else -fm.l2))
+            A = [
+                [(1 + ka) * A[0][0] + A[1][0], (1 + ka) * A[0][1] + A[1][1]],
+                [ka * A[0][0] + A[1][0], ka * A[0][1] + A[1][1]],
+            ]
+            b = [(1 + ka) * b[0] + b[1] + kd - int(k) - int(j), ka * b[0] + b[1] + kd - int(k)]
+        det = (A[0][0] - 1) * (A[1][1] - 1) - A[0][1] * A[1][0]
+        if det == 0:
+            continue
+        x = -((A[1][1] - 1) * b[0] - A[0][1] * b[1]) / det
+        q = -(-A[1][0] * b[0] + (A[0][0] - 1) * b[1]) / det
+        if not (0 <= x < 1 and 0 <= q < 1):
+            continue
+        points, z = [], (x, q)
+        for s, k, j in steps:
+            points.append(z)
+            x1, q1, *symbol = fm.step(*z)
+            if tuple(symbol) != (s, k, j):
+                break
+            z = (x1, q1)
+        else:
+            if z == (x, q) and len(set(points)) == m:  # returns, with least period m
+                found.add(frozenset(points))
+    return found
+
+
+def _cycles(orbits) -> set[frozenset]:
+    return {frozenset(o.exact) for o in orbits if o.residue != 0.0}
+
+
+# -- closed forms --------------------------------------------------------------------------------------
+def _period_one_closed_form(p: MapParams) -> dict:
+    """Period-1 points: q = 0 and K f(x) = k (x' = x + q' - j = x forces q' = j = 0), Eq. (xp).
+
+    Middle x = c - k/K, R = K/4 (DM = [[1 - K, 1], [-K, 1]], Eq. eig); left x = k/(K l1),
+    R = -K l1/4; right x = 1 + k/(K l2), R = -K l2/4. Returns {x (exact): (k, R exact)}.
+    """
+    fm = FractionMap(p)
+    out = {}
+    for k in range(-2, 3):
+        x = fm.c - Fraction(k) / fm.K
+        if fm.b1 < x < fm.right:
+            out[x] = (k, fm.K / 4)
+        x = Fraction(k) / (fm.K * fm.l1)
+        if 0 <= x <= fm.b1:
+            out[x] = (k, -fm.K * fm.l1 / 4)
+        x = 1 + Fraction(k) / (fm.K * fm.l2)
+        if fm.right <= x < 1:
+            out[x] = (k, -fm.K * fm.l2 / 4)
+    return out
+
+
+def test_acceptance_period_one_at_K3():
+    """``warpratchet orbits --K 3 --b1 0.1 --b2 0.01 --period 1``: the elliptic orbits have R = 0.75."""
+    report = orbits_report(K3, 1)
+    json.dumps(report)  # serialisable as it stands
+    elliptic = [o for o in report["orbits"] if o["kind"] == "elliptic"]
+    assert sorted(o["winding"] for o in elliptic) == [-1, 0, 1]
+    for o in elliptic:
+        assert o["residue"] == 0.75
+        assert o["x"] == [float(Fraction(K3.c) - Fraction(o["winding"], 3))] and o["p"] == [0.0]
+        assert o["nu"] == o["winding"] and o["itinerary"] == [["middle", o["winding"], 0]]
+    assert report["counts"] == {"elliptic": 3, "hyperbolic": 3, "parabolic": 0, "families": 0}
+    assert {"orbits", "families", "period", "K", "b1", "b2"} <= set(report)
+    assert "3 elliptic, 3 hyperbolic" in format_orbits(report)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    K=st.floats(0.05, 3.95),
+    b1=st.floats(1e-4, 0.6),
+    b2=st.floats(1e-4, 0.6),
+)
+def test_period_one_orbits_are_the_closed_form(K, b1, b2):
+    if b1 + b2 >= 0.95:
+        return
+    p = MapParams(K, b1, b2)
+    expected = _period_one_closed_form(p)
+    orbits = periodic_orbits(p, 1)
+    assert {o.exact[0][0]: (o.winding, Fraction(o.residue)) for o in orbits}.keys() == expected.keys()
+    for o in orbits:
+        k, residue = expected[o.exact[0][0]]
+        assert o.exact[0][1] == 0 and o.p[0] == 0.0 and o.winding == k
+        assert o.residue == float(residue)
+        assert o.kind == ("elliptic" if 0 < residue < 1 else "hyperbolic")
+
+
+# -- every orbit, once -----------------------------------------------------------------------------------
+@pytest.mark.parametrize(("p", "periods"), [(K3, 4), (K299, 4), (OTHER, 3)], ids=["K3", "K2.99", "K1.7"])
+def test_brute_force_over_all_words_finds_the_same_orbits(p, periods):
+    for m in range(1, periods + 1):
+        assert _cycles(periodic_orbits(p, m)) == brute_force(p, m), f"period {m}"
+
+
+@pytest.mark.parametrize("p", [K3, K299], ids=["K3", "K2.99"])
+def test_each_cycle_once_with_its_least_period_and_least_rotation(p):
+    seen: dict = {}
+    for m in range(1, 6):
+        for o in periodic_orbits(p, m):
+            assert len(set(o.exact)) == m  # least period m
+            rotations = [o.itinerary[i:] + o.itinerary[:i] for i in range(m)]
+            assert o.itinerary == min(rotations)
+            for point in o.exact:
+                assert point not in seen, f"{point} in two cycles (periods {seen.get(point)} and {m})"
+                seen[point] = m
+            assert o.kind in KINDS and o.nu == o.winding / m
+
+
+def test_winding_is_the_momentum_gain():
+    """w = p_m - p_0 = sum of K f(x_i) over the exact orbit (Eq. am), without the symbol bookkeeping."""
+    for p in (K3, K299):
+        fm = FractionMap(p)
+        for m in range(1, 5):
+            for o in periodic_orbits(p, m):
+                assert sum(fm.K * fm.force(x) for x, _ in o.exact) == o.winding
+
+
+# -- the project's own arithmetic ------------------------------------------------------------------------
+def _one_step(p: MapParams, x: np.ndarray, q: np.ndarray):
+    zeros = np.zeros_like(x)
+    state = {
+        "x": x,
+        "q": q,
+        "winding": zeros.astype(np.int64),
+        "dx": zeros,
+        "dp": zeros,
+        "log_stretch": zeros,
+    }
+    out = reference.advance(p, state, 1)
+    return out["x"], out["q"]
+
+
+def _torus_distance(a, b):
+    d = np.abs(a - b) % 1.0
+    return np.minimum(d, 1.0 - d)
+
+
+def _local_error(p: MapParams, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(||DM||_inf, bound)`` for one step of ``reference`` from correctly rounded points: each
+    coordinate is within u of the exact one, which one step spreads by ``||DM||``; the step rounds
+    a handful of numbers below 3 (Eq. fx, ``|K f| < 2``): ``2^-52 (||DM||_inf + 16)`` in all."""
+    norms = np.abs(p.jacobian(x)).sum(-1).max(-1)
+    return norms, 2.0**-52 * (norms + 16)
+
+
+def _iterate(p: MapParams, x: np.ndarray, q: np.ndarray, steps: int):
+    """``steps`` steps of ``reference`` and the first-order bound on the distance from the exact
+    images: the local error of step ``i`` carried by the product of the later Jacobians."""
+    jacobians, locals_ = [], []
+    for _ in range(steps):
+        jacobians.append(p.jacobian(x))
+        locals_.append(_local_error(p, x)[1])
+        x, q = _one_step(p, x, q)
+    bound = np.zeros_like(x)
+    carry = np.broadcast_to(np.eye(2), (x.size, 2, 2))
+    for jac, local in zip(reversed(jacobians), reversed(locals_), strict=True):
+        bound = bound + np.abs(carry).sum(-1).max(-1) * local
+        carry = carry @ jac
+    return x, q, bound
+
+
+@pytest.mark.parametrize("p", [K3, K299, OTHER], ids=["K3", "K2.99", "K1.7"])
+def test_orbits_are_orbits_of_the_kernel_arithmetic(p):
+    """Each point, stepped once by ``warpratchet.reference`` (the kernels' bitwise twin), lands on
+    the next one within the rounding bound of :func:`_local_error`; iterated m times, the first
+    point returns within :func:`_iterate`'s bound (measured: at most 60 ulps for the elliptic
+    orbits, 0.6 of the bound for the hyperbolic ones)."""
+    for m in range(1, 6):
+        for o in periodic_orbits(p, m):
+            _, local = _local_error(p, o.x)
+            x1, q1 = _one_step(p, o.x, o.p)
+            assert np.all(_torus_distance(x1, np.roll(o.x, -1)) <= local)
+            assert np.all(_torus_distance(q1, np.roll(o.p, -1)) <= local)
+            x, q, bound = _iterate(p, o.x[:1], o.p[:1], m)
+            assert _torus_distance(x, o.x[:1])[0] <= bound[0] and _torus_distance(q, o.p[:1])[0] <= bound[0]
+
+
+@pytest.mark.parametrize("p", [K3, K299, OTHER], ids=["K3", "K2.99", "K1.7"])
+def test_residue_is_that_of_the_product_of_jacobians(p):
+    """R = (2 - tr)/4 of DM(x_{m-1}) ... DM(x_0) from ``MapParams.jacobian`` at the reported points;
+    a float64 product of m matrices is within ``m u prod ||DM||`` entrywise (times 2 for the trace)."""
+    for m in range(1, 6):
+        for o in periodic_orbits(p, m):
+            product = np.eye(2)
+            for jac in p.jacobian(o.x):
+                product = jac @ product
+            norms = np.abs(p.jacobian(o.x)).sum(-1).max(-1)
+            tolerance = 2 * m * U * math.prod(norms) + o.residue_tolerance
+            assert abs((2.0 - np.trace(product)) / 4.0 - o.residue) <= tolerance
+            if o.kind == "hyperbolic":
+                assert o.residue < -o.residue_tolerance or o.residue > 1 + o.residue_tolerance
+
+
+# -- islands: the census and the exact areas at K = 3 ----------------------------------------------------
+@pytest.mark.parametrize(("p", "periods"), [(K3, 3), (K299, 6)], ids=["K3", "K2.99"])
+def test_elliptic_orbits_carry_the_census_islands(p, periods):
+    """The nu of the elliptic orbits up to period M are the census's island classes of period <= M.
+
+    Every elliptic orbit's class has census points (its island is big enough here), and every
+    class the census resolves (area above 5 standard errors; single sticky orbits of C make
+    classes of a few points) has an elliptic orbit with that nu."""
+    elliptic = {
+        Fraction(o.winding, o.period)
+        for m in range(1, periods + 1)
+        for o in periodic_orbits(p, m)
+        if o.kind == "elliptic"
+    }
+    result = census(p, 16_000, points=40_000, seed=5)
+    classes = {Fraction(i.w, i.m): i for i in result.islands if i.m <= periods}
+    assert elliptic <= set(classes)
+    assert {nu for nu, i in classes.items() if i.area > 5 * i.area_stderr} <= elliptic
+    if p.K == 3.0:
+        assert elliptic == {-1, 0, 1}
+    else:
+        assert elliptic == {-1, Fraction(-2, 3), Fraction(-1, 3), 0, Fraction(1, 3), Fraction(2, 3)}
+
+
+@pytest.mark.parametrize(
+    ("b1", "b2"), [(0.1, 0.01), (0.05, 0.02), (0.3, 0.03), (0.03, 0.3)], ids=["LR", "LR-Fig1", "R", "L"]
+)
+def test_period_three_families_tile_the_islands_at_K3(b1, b2):
+    """At K = 3 the middle piece has DM^3 = I (Eq. eig): the islands are period-3 families. Their areas
+    are Eqs. (SL), (SR) exactly, and the rest of the torus is S_C of Eqs. (SC1)-(SC3)."""
+    p = MapParams(3.0, b1, b2)
+    areas: dict = defaultdict(float)
+    for family in orbit_families(p, 3):
+        assert family.residue == 0.0 and family.kind == "parabolic" and family.period == 3
+        areas[family.nu] += family.invariant_area
+        if family.shape == "polygon":
+            assert family.identity and family.area > 0
+        else:
+            assert family.area == 0.0 and len(family.vertices) == 2
+    assert math.isclose(areas[1.0], theory.area_left(p), rel_tol=1e-12, abs_tol=1e-15)
+    assert math.isclose(areas[-1.0], theory.area_right(p), rel_tol=1e-12, abs_tol=1e-15)
+    assert math.isclose(1.0 - sum(areas.values()), theory.area_chaotic(p), rel_tol=1e-12)
+
+
+def test_family_points_return_under_the_kernel_arithmetic():
+    """Interior points of every K = 3 period-3 polygon family return after 3 steps of ``reference``
+    within the rounding bound (DM^3 = I there: a few ulps)."""
+    rng = np.random.default_rng(4)
+    polygons = [f for f in orbit_families(K3, 3) if f.shape == "polygon"]
+    assert len(polygons) == 6
+    for family in polygons:
+        weights = rng.dirichlet(np.ones(len(family.vertices)), size=50)
+        x, q = (weights @ family.vertices).T
+        x1, q1, bound = _iterate(K3, x, q, 3)
+        assert np.all(_torus_distance(x1, x) <= bound) and np.all(_torus_distance(q1, q) <= bound)
+        assert bound.max() <= 2.0**-52 * 1000
+
+
+def test_no_elliptic_orbits_beyond_period_one_at_K3():
+    """Sec. III C: 'there appear to be no higher-period AIs at K = 3' (checked here up to period 5)."""
+    for m in range(2, 6):
+        assert not [o for o in periodic_orbits(K3, m) if o.kind == "elliptic"]
+
+
+# -- bad input -------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("period", [0, -1, 2.5, True, "3"])
+def test_bad_period_is_refused_in_one_line(period):
+    with pytest.raises(ValueError, match=r"period = .* is outside the allowed range period >= 1") as info:
+        enumerate_orbits(K3, period)
+    assert "\n" not in str(info.value)
+
+
+def test_params_must_be_MapParams():
+    with pytest.raises(ValueError, match="is not a MapParams"):
+        enumerate_orbits((3.0, 0.1, 0.01), 1)
