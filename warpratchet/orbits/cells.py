@@ -1,13 +1,17 @@
 """Exact convex cells: the closure of the set of starting points that follow an itinerary.
 
 A cell is a convex polygon in the starting point ``z0 = (x, q)``, held exactly: its edges are
-integer lines ``a x + b q + c >= 0`` and its vertices homogeneous integer points
+integer lines ``a x + b q + c >= 0`` in ``z0`` and its vertices homogeneous integer points
 ``(X, Q, W)``, ``W > 0`` (the point ``(X/W, Q/W)``), each the crossing of two edge lines, so
-the numbers never grow beyond twice a line's size. Integers are needed, not floats: a cell of
-an ``m``-step itinerary is ``~Lambda^-m`` thin (``Lambda`` up to ``1 + K l2 ~ 140`` per step
-at b2 = 0.01) while its pulled-back edges are nearly parallel, so float64 geometry cannot tell
-an empty cell from a thin one after a few steps (measured: 71% of the float search's cells at
-m = 8 were empty, and it was three times slower than this).
+the numbers never grow beyond twice a line's size. Each vertex also carries its image under the
+itinerary so far, ``z_i = (x_i, q_i)``, as ``(xv, qv, sw) = scale W (x_i, q_i, 1)``: the next
+symbol's half-planes have small integer coefficients in ``z_i``, so testing a vertex costs
+small-by-large products, and a child updates ``(xv, qv, sw)`` by one step of the map.
+
+Integers, not floats: a cell of an ``m``-step itinerary is ``~Lambda^-m`` thin (``Lambda`` up to
+``1 + K l2 ~ 140`` per step at b2 = 0.01) while its pulled-back edges are nearly parallel, so
+float64 geometry cannot tell an empty cell from a thin one after a few steps (a float64 version
+of this search kept 71% empty cells at m = 8 and was three times slower).
 
 A cell may degenerate to a segment or a point (points on a boundary line that the half-open
 rules give to it); only closures are computed here, the half-open rules are applied by
@@ -22,43 +26,50 @@ from collections.abc import Sequence
 from fractions import Fraction
 
 from .exact import Composite, ExactMap
-from .symbols import decode, j_constraint, k_constraints, piece_constraints
 
-__all__ = ["Cell", "UNIT_SQUARE", "clip", "pulled", "step_constraints", "cell_of", "vertices", "area"]
+__all__ = ["Cell", "unit_square", "clip", "advance", "at_start", "vertices", "area"]
 
-#: ``(vertices, lines)``: vertex ``i`` to vertex ``i + 1`` runs along ``lines[i]`` (counter-clockwise).
-Cell = tuple[list[tuple[int, int, int]], list[tuple[int, int, int]]]
-
-#: ``[0, 1]^2``: edges ``q >= 0``, ``x <= 1``, ``q <= 1``, ``x >= 0``.
-UNIT_SQUARE: Cell = (
-    [(0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)],
-    [(0, 1, 0), (-1, 0, 1), (0, -1, 1), (1, 0, 0)],
-)
+#: ``(vertices, lines)``: vertex ``(X, Q, W, xv, qv, sw)``; vertex ``i`` to vertex ``i + 1`` runs
+#: along ``lines[i]`` (counter-clockwise).
+Cell = tuple[list[tuple[int, ...]], list[tuple[int, int, int]]]
 
 
-def _meet(l1: tuple[int, int, int], l2: tuple[int, int, int]) -> tuple[int, int, int]:
-    """The crossing of two non-parallel lines, homogeneous with ``W > 0``."""
+def unit_square() -> Cell:
+    """``[0, 1]^2`` at depth 0 (``z_0 = z0``): edges ``q >= 0``, ``x <= 1``, ``q <= 1``, ``x >= 0``."""
+    corners = [(0, 0, 1), (1, 0, 1), (1, 1, 1), (0, 1, 1)]
+    return [c + c for c in corners], [(0, 1, 0), (-1, 0, 1), (0, -1, 1), (1, 0, 0)]
+
+
+def _vertex(l1: tuple[int, int, int], l2: tuple[int, int, int], comp: Composite) -> tuple[int, ...]:
+    """The crossing of two non-parallel lines (``W > 0``) with its image ``scale W z_i``."""
     a1, b1, c1 = l1
     a2, b2, c2 = l2
     X, Q, W = b1 * c2 - c1 * b2, c1 * a2 - a1 * c2, a1 * b2 - b1 * a2
-    return (X, Q, W) if W > 0 else (-X, -Q, -W)
+    if W < 0:
+        X, Q, W = -X, -Q, -W
+    a11, a12, a21, a22, t1, t2, scale = comp
+    return X, Q, W, a11 * X + a12 * Q + t1 * W, a21 * X + a22 * Q + t2 * W, scale * W
 
 
-def clip(cell: Cell, line: tuple[int, int, int]) -> Cell | None:
-    """``cell`` intersected with the closed half-plane ``line >= 0``; None if that is empty.
+def clip(cell: Cell, constraint: tuple[int, int, int], comp: Composite) -> Cell | None:
+    """``cell`` cut by the closed half-plane ``ux x_i + uq q_i + v >= 0`` of the current point
+    (``comp`` maps ``z0`` to ``z_i``); None if that is empty.
 
-    Sutherland-Hodgman with exact signs: a vertex on the line stays, so a cell can shrink to
-    a segment or a point but never loses a point of its closure.
+    Sutherland-Hodgman with exact signs: a vertex on the line stays, so a cell can shrink to a
+    segment or a point but never loses a point of its closure.
     """
     verts, lines = cell
-    a, b, c = line
-    values = [a * X + b * Q + c * W for X, Q, W in verts]
+    ux, uq, v = constraint
+    values = [ux * xv + uq * qv + v * sw for _, _, _, xv, qv, sw in verts]
     if min(values) >= 0:
         return cell
     if max(values) < 0:
         return None
+    # the same half-plane in z0, through z_i = (A z0 + b) / scale
+    a11, a12, a21, a22, b1, b2, scale = comp
+    line = (ux * a11 + uq * a21, ux * a12 + uq * a22, ux * b1 + uq * b2 + v * scale)
     n = len(verts)
-    out_v: list[tuple[int, int, int]] = []
+    out_v: list[tuple[int, ...]] = []
     out_l: list[tuple[int, int, int]] = []
     for i in range(n):
         v0, v1 = values[i], values[(i + 1) % n]
@@ -66,53 +77,40 @@ def clip(cell: Cell, line: tuple[int, int, int]) -> Cell | None:
             out_v.append(verts[i])
             out_l.append(lines[i])
             if v1 < 0:  # leaves the half-plane: the exit point starts an edge on the line
-                out_v.append(_meet(lines[i], line))
+                out_v.append(_vertex(lines[i], line, comp))
                 out_l.append(line)
         elif v0 == 0:
             out_v.append(verts[i])
             out_l.append(line if v1 < 0 else lines[i])
         elif v1 > 0:  # enters: the entry point starts the rest of edge i
-            out_v.append(_meet(lines[i], line))
+            out_v.append(_vertex(lines[i], line, comp))
             out_l.append(lines[i])
     return out_v, out_l
 
 
-def pulled(comp: Composite, constraint: tuple[int, int, int]) -> tuple[int, int, int]:
-    """The half-plane ``ux x_i + uq q_i + v >= 0`` of the current point (integers over ``L``)
-    as an exact line in ``z0``, through ``z_i = (A z0 + b) / scale`` (times ``scale > 0``)."""
-    a11, a12, a21, a22, b1, b2, scale = comp
-    ux, uq, v = constraint
-    return ux * a11 + uq * a21, ux * a12 + uq * a22, ux * b1 + uq * b2 + v * scale
+def advance(em: ExactMap, cell: Cell, symbol: int) -> Cell:
+    """The same cell with its vertices' images carried one step further, by ``symbol``'s affine map."""
+    L = em.L
+    s, rest = divmod(symbol, 10)
+    k, j = rest // 2 - 2, rest % 2
+    ka, kd = em.ka_L[s], em.kd_L[s]
+    cx, cq = kd - L * (k + j), kd - L * k
+    verts = [
+        (X, Q, W, (L + ka) * xv + L * qv + cx * sw, ka * xv + L * qv + cq * sw, L * sw)
+        for X, Q, W, xv, qv, sw in cell[0]
+    ]
+    return verts, cell[1]
 
 
-def step_constraints(em: ExactMap, symbol: int) -> tuple[tuple[int, int, int], ...]:
-    """The half-planes of the cell of one symbol in the current point, integers over ``L``."""
-    s, k, j = decode(symbol)
-    L, ka, kd = em.L, em.ka_L[s], em.kd_L[s]
-    return (
-        *piece_constraints(s, em.b1_L, em.right_L, L),
-        *k_constraints(ka, kd, k, L),
-        j_constraint(ka, kd, k, j, L),
-    )
-
-
-def cell_of(em: ExactMap, word: Sequence[int]) -> Cell | None:
-    """The exact cell of an itinerary (None: no point follows it)."""
-    cell: Cell | None = UNIT_SQUARE
-    comp = em.identity()
-    for symbol in word:
-        for constraint in step_constraints(em, symbol):
-            cell = clip(cell, pulled(comp, constraint))
-            if cell is None:
-                return None
-        comp = em.extend(comp, symbol)
-    return cell
+def at_start(cell: Cell) -> Cell:
+    """The same cell at depth 0 (the images are the points): for cutting it by lines in ``z0``."""
+    return [(X, Q, W, X, Q, W) for X, Q, W, *_ in cell[0]], cell[1]
 
 
 def vertices(cell: Cell) -> list[tuple[Fraction, Fraction]]:
-    """The distinct vertices of a cell as exact points, in order."""
+    """The distinct vertices of a cell as exact points ``z0``, in order."""
     out: list[tuple[Fraction, Fraction]] = []
-    for X, Q, W in cell[0]:
+    for X, Q, W, *_ in cell[0]:
         point = (Fraction(X, W), Fraction(Q, W))
         if not out or point != out[-1]:
             out.append(point)

@@ -27,14 +27,15 @@ import math
 import time
 from dataclasses import dataclass, field
 from fractions import Fraction
+from functools import cached_property
 
 import numpy as np
 
 from ..params import MapParams
 from . import cells
-from .exact import Composite, ExactMap, from_fractions
+from .exact import Composite, ExactMap, as_fractions, from_fractions
 from .search import search
-from .symbols import decode, piece_coefficients, winding
+from .symbols import decode, winding
 
 __all__ = [
     "KINDS",
@@ -74,13 +75,18 @@ class Orbit:
     residue: float
     residue_tolerance: float
     kind: str
-    #: The exact points ``(x, q)`` of the map with float64 coefficients.
-    exact: tuple[tuple[Fraction, Fraction], ...] = field(repr=False, compare=False)
+    #: The exact points as integers ``(X, Q, D)``: ``(x, q) = (X / D, Q / D)``.
+    points: tuple[tuple[int, int, int], ...] = field(repr=False, compare=False)
 
     @property
     def nu(self) -> float:
         """Mean acceleration ``w / m`` of the orbit (Eq. AIn)."""
         return self.winding / self.period
+
+    @cached_property
+    def exact(self) -> tuple[tuple[Fraction, Fraction], ...]:
+        """The exact points ``(x, q)`` of the map with float64 coefficients, as Fractions."""
+        return tuple(as_fractions(point) for point in self.points)
 
 
 @dataclass(frozen=True)
@@ -133,16 +139,17 @@ def check_period(period: object) -> int:
     return int(period)
 
 
-def _torus_float(value: Fraction) -> float:
-    """Correctly rounded float of a coordinate in ``[0, 1)``; one that rounds up to 1 is 0 on the torus."""
-    out = float(value)
+def _torus_float(numerator: int, denominator: int) -> float:
+    """Correctly rounded ``numerator / denominator`` in ``[0, 1)`` (Python's int division is);
+    one that rounds up to 1 is 0 on the torus."""
+    out = numerator / denominator
     return 0.0 if out >= 1.0 else out
 
 
-def _residue_tolerance(params: MapParams, word) -> float:
+def _residue_tolerance(em: ExactMap, word) -> float:
     """Bound on ``|dR|`` when ``l1, l2`` move by ``SLOPE_ULPS`` ulps: with ``S_i = DM`` of step ``i``,
     ``|d tr| <= 2 sum_i |d(K a_i)| prod_{j != i} ||S_j||_inf`` and ``R = (2 - tr) / 4``."""
-    ka = [params.K * a for a, _ in piece_coefficients(params)]
+    ka = em.ka_float
     norms = [abs(1.0 + ka[decode(s)[0]]) + 1.0 for s in word]
     total = 0.0
     for i, symbol in enumerate(word):
@@ -164,17 +171,17 @@ def _orbit(em: ExactMap, word, point: tuple[int, int, int], comp: Composite) -> 
     m = len(word)
     points = em.orbit(point, m)
     residue = comp.residue()
-    tolerance = _residue_tolerance(em.params, word)
+    tolerance = _residue_tolerance(em, word)
     return Orbit(
         period=m,
         itinerary=word,
-        x=np.array([_torus_float(x) for x, _ in points]),
-        p=np.array([_torus_float(q) for _, q in points]),
+        x=np.array([_torus_float(X, D) for X, _, D in points]),
+        p=np.array([_torus_float(Q, D) for _, Q, D in points]),
         winding=winding(word),
         residue=float(residue),
         residue_tolerance=tolerance,
         kind=_kind(residue, tolerance),
-        exact=tuple(points),
+        points=tuple(points),
     )
 
 
@@ -204,8 +211,9 @@ def _family(em: ExactMap, word, root: int, cell: cells.Cell, comp: Composite) ->
         other = rows[1 - rows.index(r)]
         if other[0] * r[2] != other[2] * r[0] or other[1] * r[2] != other[2] * r[1]:
             return None  # [A - I | b] has rank 2: no solution
-        fixed = cells.clip(cell, r)
-        fixed = cells.clip(fixed, (-r[0], -r[1], -r[2])) if fixed is not None else None
+        start, identity_map = cells.at_start(cell), em.identity()
+        fixed = cells.clip(start, r, identity_map)
+        fixed = cells.clip(fixed, (-r[0], -r[1], -r[2]), identity_map) if fixed is not None else None
         if fixed is None:
             return None
     points = cells.vertices(fixed)
@@ -244,7 +252,7 @@ def enumerate_orbits(params: MapParams, period: int) -> Enumeration:
     params : MapParams
     period : int
         The period ``m >= 1``. The cost grows like the number of admissible itineraries,
-        about ``3.2^m`` at K = 3, b1 = 0.1, b2 = 0.01 (``benchmarks/orbits.py``).
+        about ``3.3^m`` at K = 3, b1 = 0.1, b2 = 0.01 (``benchmarks/orbits.py``).
 
     Returns
     -------
@@ -276,7 +284,7 @@ def enumerate_orbits(params: MapParams, period: int) -> Enumeration:
                 orbits.append(_orbit(em, word, point, comp))
 
     nodes = search(em, period, on_leaf)
-    orbits.sort(key=lambda o: (o.nu, o.x[0], o.p[0]))
+    orbits.sort(key=lambda o: (o.nu, o.x[0], o.p[0], o.itinerary))
     families.sort(key=lambda f: (f.nu, f.itinerary))
     return Enumeration(
         params=params,
@@ -289,11 +297,17 @@ def enumerate_orbits(params: MapParams, period: int) -> Enumeration:
     )
 
 
-def periodic_orbits(params: MapParams, period: int) -> list[Orbit]:
+def periodic_orbits(
+    params: MapParams,
+    period: int,
+) -> list[Orbit]:
     """The isolated periodic orbits of exact period ``period`` (:func:`enumerate_orbits`)."""
     return enumerate_orbits(params, period).orbits
 
 
-def orbit_families(params: MapParams, period: int) -> list[Family]:
+def orbit_families(
+    params: MapParams,
+    period: int,
+) -> list[Family]:
     """The families (whole polygons or segments) of period-``period`` points (:func:`enumerate_orbits`)."""
     return enumerate_orbits(params, period).families

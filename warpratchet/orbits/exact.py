@@ -94,6 +94,7 @@ class ExactMap:
         self.params = params
         self.right = 1.0 - params.b2  # as the kernels round it
         pieces = piece_coefficients(params)
+        self.ka_float = [params.K * a for a, _ in pieces]  # K f' as the kernels round it
         self.ka = [Fraction(params.K) * Fraction(a) for a, _ in pieces]
         self.kd = [Fraction(params.K) * Fraction(d) for _, d in pieces]
         rationals = [Fraction(params.b1), Fraction(self.right), *self.ka, *self.kd]
@@ -135,13 +136,13 @@ class ExactMap:
         scale = self.L ** len(word)
         return X == X0 * scale and Q == Q0 * scale
 
-    def orbit(self, point: tuple[int, int, int], steps: int) -> list[tuple[Fraction, Fraction]]:
-        """``z, M z, ..., M^(steps-1) z`` exactly, from ``z = (X, Q) / D``."""
+    def orbit(self, point: tuple[int, int, int], steps: int) -> list[tuple[int, int, int]]:
+        """``z, M z, ..., M^(steps-1) z`` exactly, as ``(X, Q, D)``, from ``z = (X, Q) / D``."""
         X, Q, D = point
-        points = [as_fractions(point)]
+        points = [point]
         for _ in range(steps - 1):
             _, X, Q, D = self.step(X, Q, D)
-            points.append(as_fractions((X, Q, D)))
+            points.append((X, Q, D))
         return points
 
     # -- itineraries as affine maps -------------------------------------------------------------

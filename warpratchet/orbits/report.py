@@ -44,7 +44,7 @@ def family_json(family: Family) -> dict:
     }
 
 
-def orbits_report(params: MapParams, period: int, enumeration: Enumeration | None = None) -> dict:
+def orbits_report(params: MapParams, period: int, *, enumeration: Enumeration | None = None) -> dict:
     """The JSON object of ``warpratchet orbits --K --b1 --b2 --period M --json``.
 
     Keys: ``K, b1, b2, period``; ``orbits`` (:func:`orbit_json`, sorted by ``nu``, then ``x_0``);

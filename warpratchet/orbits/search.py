@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from .cells import UNIT_SQUARE, Cell, clip, pulled
+from .cells import Cell, advance, clip, unit_square
 from .exact import Composite, ExactMap
 from .symbols import K_RANGE, j_constraint, k_constraints, piece_constraints
 
@@ -43,7 +43,7 @@ def search(em: ExactMap, period: int, on_leaf: LeafHandler) -> int:
 
     def cut(cell, comp, constraints):
         for constraint in constraints:
-            cell = clip(cell, pulled(comp, constraint))
+            cell = clip(cell, constraint, comp)
             if cell is None:
                 return None
         return cell
@@ -60,10 +60,8 @@ def search(em: ExactMap, period: int, on_leaf: LeafHandler) -> int:
             P = cut(cell, comp, piece_halfplanes)
             if P is None:
                 continue
-            # k = floor(t) over the cell: pulled(t-line) at a vertex is scale L t W.
-            tx, tq, t0 = pulled(comp, (ka, L, kd))
-            unit = L * comp.scale
-            ks = [(tx * X + tq * Q + t0 * W) // (unit * W) for X, Q, W in P[0]]
+            # k = floor(t) at the vertices: L t scale W = ka xv + L qv + kd sw.
+            ks = [(ka * xv + L * qv + kd * sw) // (L * sw) for _, _, _, xv, qv, sw in P[0]]
             for k in range(max(min(ks), K_RANGE[0]), min(max(ks), K_RANGE[-1]) + 1):
                 Pk = cut(P, comp, k_constraints(ka, kd, k, L))
                 if Pk is None:
@@ -77,12 +75,12 @@ def search(em: ExactMap, period: int, on_leaf: LeafHandler) -> int:
                         new_root = root if symbol == reference else depth + 1
                     else:
                         new_root = 1
-                    Pj = cut(Pk, comp, (j_constraint(ka, kd, k, j, L),))
+                    Pj = clip(Pk, j_constraint(ka, kd, k, j, L), comp)
                     if Pj is None:
                         continue
                     word.append(symbol)
-                    visit(Pj, em.extend(comp, symbol), new_root)
+                    visit(advance(em, Pj, symbol), em.extend(comp, symbol), new_root)
                     word.pop()
 
-    visit(UNIT_SQUARE, em.identity(), 1)
+    visit(unit_square(), em.identity(), 1)
     return nodes
