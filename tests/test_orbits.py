@@ -37,27 +37,34 @@ OTHER = MapParams(1.7, 0.2, 0.3)  # weak kicks
 
 # -- an independent exact map: Fractions straight from Eqs. (cpem), (fx) -------------------------------
 class FractionMap:
-    """The torus map with the float64 coefficients of ``p`` (as the kernels use them), in Fractions."""
+    """The torus map in Fractions: kicks ``K f = ka x + kd`` with the float64 products ``K * l1``,
+    ``-K``, ``K * l2`` (the kernels' tangent slopes) and ``K * c``, ``-K * l2``; cuts at the float64
+    ``b1`` and ``1 - b2``; ``k = floor(t)``, ``j = [x + q' >= 1]`` (Eqs. cpem, fx)."""
 
     def __init__(self, p: MapParams):
         self.K, self.b1, self.right = Fraction(p.K), Fraction(p.b1), Fraction(1.0 - p.b2)
-        self.l1, self.l2, self.c = Fraction(p.l1), Fraction(p.l2), Fraction(p.c)
+        kl2 = p.K * p.l2
+        self.kicks = [
+            (Fraction(p.K * p.l1), Fraction(0)),
+            (-self.K, Fraction(p.K * p.c)),
+            (Fraction(kl2), -Fraction(kl2)),
+        ]
 
-    def force(self, x):
-        if x <= self.b1:
-            return self.l1 * x
-        if x < self.right:
-            return self.c - x
-        return self.l2 * (x - 1)
+    def piece(self, x):
+        return 0 if x <= self.b1 else (1 if x < self.right else 2)
+
+    def kick(self, x):
+        """``K f(x)``."""
+        ka, kd = self.kicks[self.piece(x)]
+        return ka * x + kd
 
     def step(self, x, q):
         """``(x', q', piece, k, j)``."""
-        piece = 0 if x <= self.b1 else (1 if x < self.right else 2)
-        t = q + self.K * self.force(x)
+        t = q + self.kick(x)
         k = math.floor(t)
         q1 = t - k
         j = 1 if x + q1 >= 1 else 0
-        return x + q1 - j, q1, piece, k, j
+        return x + q1 - j, q1, self.piece(x), k, j
 
 
 def brute_force(p: MapParams, m: int) -> set[frozenset]:
@@ -73,8 +80,7 @@ def brute_force(p: MapParams, m: int) -> set[frozenset]:
     symbols = np.array(list(itertools.product(range(3), range(-2, 3), range(2))))  # (piece, k, j)
     words = np.array(list(itertools.product(range(30), repeat=m)))
     n = len(words)
-    a = np.array([p.l1, -1.0, p.l2])
-    d = np.array([0.0, p.c, -p.l2])
+    kicks = np.array([[float(v) for v in kick] for kick in FractionMap(p).kicks])  # (3, 2)
     right = 1.0 - p.b2
     keep = np.ones(n, dtype=bool)
     for r in range(m):  # rotation r starts with symbol r
@@ -82,7 +88,7 @@ def brute_force(p: MapParams, m: int) -> set[frozenset]:
         b = np.zeros((n, 2))
         for i in range(m):
             s, k, j = symbols[words[:, (r + i) % m]].T
-            ka, kd = p.K * a[s], p.K * d[s]
+            ka, kd = kicks[s, 0], kicks[s, 1]
             S = np.stack([np.stack([1 + ka, np.ones(n)], -1), np.stack([ka, np.ones(n)], -1)], -2)
             A = S @ A
             b = np.einsum("nij,nj->ni", S, b) + np.stack([kd - k - j, kd - k], -1)
@@ -95,7 +101,7 @@ def brute_force(p: MapParams, m: int) -> set[frozenset]:
         # z = -(A - I)^-1 b with A, b good to ~m u |A|, u |b| (z in the unit square):
         tol = 64 * U * inverse_norm * (np.abs(A).sum(-1).max(-1) + np.abs(b).max(-1) + 1)
         s, k, j = symbols[words[:, r]].T
-        ka, kd = p.K * a[s], p.K * d[s]
+        ka, kd = kicks[s, 0], kicks[s, 1]
         with np.errstate(invalid="ignore"):  # nan where det = 0, dropped below
             t = q + ka * x + kd
         in_piece = np.where(
@@ -113,8 +119,7 @@ def brute_force(p: MapParams, m: int) -> set[frozenset]:
         A = [[Fraction(1), Fraction(0)], [Fraction(0), Fraction(1)]]
         b = [Fraction(0), Fraction(0)]
         for s, k, j in steps:
-            ka = fm.K * (fm.l1 if s == 0 else (-1 if s == 1 else fm.l2))
-            kd = fm.K * (0 if s == 0 else (fm.c if s == 1 else -fm.l2))
+            ka, kd = fm.kicks[s]
             A = [
                 [(1 + ka) * A[0][0] + A[1][0], (1 + ka) * A[0][1] + A[1][1]],
                 [ka * A[0][0] + A[1][0], ka * A[0][1] + A[1][1]],
@@ -148,21 +153,17 @@ def _cycles(orbits) -> set[frozenset]:
 def _period_one_closed_form(p: MapParams) -> dict:
     """Period-1 points: q = 0 and K f(x) = k (x' = x + q' - j = x forces q' = j = 0), Eq. (xp).
 
-    Middle x = c - k/K, R = K/4 (DM = [[1 - K, 1], [-K, 1]], Eq. eig); left x = k/(K l1),
-    R = -K l1/4; right x = 1 + k/(K l2), R = -K l2/4. Returns {x (exact): (k, R exact)}.
+    With K f = ka x + kd on each piece (:class:`FractionMap`): middle x = (kd - k)/K, i.e.
+    c - k/K (Eq. xp) to rounding, R = K/4 (DM = [[1 - K, 1], [-K, 1]], Eq. eig); left
+    x = k/ka, right x = 1 + k/ka, R = -ka/4. Returns {x (exact): (k, R exact)}.
     """
     fm = FractionMap(p)
     out = {}
     for k in range(-2, 3):
-        x = fm.c - Fraction(k) / fm.K
-        if fm.b1 < x < fm.right:
-            out[x] = (k, fm.K / 4)
-        x = Fraction(k) / (fm.K * fm.l1)
-        if 0 <= x <= fm.b1:
-            out[x] = (k, -fm.K * fm.l1 / 4)
-        x = 1 + Fraction(k) / (fm.K * fm.l2)
-        if fm.right <= x < 1:
-            out[x] = (k, -fm.K * fm.l2 / 4)
+        for piece, (ka, kd) in enumerate(fm.kicks):
+            x = (k - kd) / ka
+            if 0 <= x < 1 and fm.piece(x) == piece:
+                out[x] = (k, (2 - (2 + ka)) / 4)
     return out
 
 
@@ -174,7 +175,8 @@ def test_acceptance_period_one_at_K3():
     assert sorted(o["winding"] for o in elliptic) == [-1, 0, 1]
     for o in elliptic:
         assert o["residue"] == 0.75
-        assert o["x"] == [float(Fraction(K3.c) - Fraction(o["winding"], 3))] and o["p"] == [0.0]
+        assert o["x"] == [float((Fraction(3.0 * K3.c) - o["winding"]) / 3)] and o["p"] == [0.0]
+        assert abs(o["x"][0] - (K3.c - o["winding"] / 3)) <= 2 * 2.0**-53  # Eq. (xp)
         assert o["nu"] == o["winding"] and o["itinerary"] == [["middle", o["winding"], 0]]
     assert report["counts"] == {"elliptic": 3, "hyperbolic": 3, "parabolic": 0, "families": 0}
     assert {"orbits", "families", "period", "K", "b1", "b2"} <= set(report)
@@ -228,7 +230,7 @@ def test_winding_is_the_momentum_gain():
         fm = FractionMap(p)
         for m in range(1, 5):
             for o in periodic_orbits(p, m):
-                assert sum(fm.K * fm.force(x) for x, _ in o.exact) == o.winding
+                assert sum(fm.kick(x) for x, _ in o.exact) == o.winding
 
 
 # -- the project's own arithmetic ------------------------------------------------------------------------

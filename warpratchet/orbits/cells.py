@@ -4,7 +4,8 @@ A cell is a convex polygon in the starting point ``z0 = (x, q)``, held exactly: 
 integer lines ``a x + b q + c >= 0`` in ``z0`` and its vertices homogeneous integer points
 ``(X, Q, W)``, ``W > 0`` (the point ``(X/W, Q/W)``), each the crossing of two edge lines, so
 the numbers never grow beyond twice a line's size. Each vertex also carries its image under the
-itinerary so far, ``z_i = (x_i, q_i)``, as ``(xv, qv, sw) = scale W (x_i, q_i, 1)``: the next
+itinerary so far, ``z_i = (x_i, q_i)``, as ``(xv, qv, sw)``, a positive multiple of
+``(x_i, q_i, 1)``: the next
 symbol's half-planes have small integer coefficients in ``z_i``, so testing a vertex costs
 small-by-large products, and a child updates ``(xv, qv, sw)`` by one step of the map.
 
@@ -41,26 +42,37 @@ def unit_square() -> Cell:
 
 
 def _vertex(l1: tuple[int, int, int], l2: tuple[int, int, int], comp: Composite) -> tuple[int, ...]:
-    """The crossing of two non-parallel lines (``W > 0``) with its image ``scale W z_i``."""
+    """The crossing of two non-parallel lines (``W > 0``) with its image ``(xv, qv, sw) ~ (z_i, 1)``."""
     a1, b1, c1 = l1
     a2, b2, c2 = l2
     X, Q, W = b1 * c2 - c1 * b2, c1 * a2 - a1 * c2, a1 * b2 - b1 * a2
     if W < 0:
         X, Q, W = -X, -Q, -W
     a11, a12, a21, a22, t1, t2, scale = comp
-    return X, Q, W, a11 * X + a12 * Q + t1 * W, a21 * X + a22 * Q + t2 * W, scale * W
+    return (X, Q, W, *_reduced(a11 * X + a12 * Q + t1 * W, a21 * X + a22 * Q + t2 * W, scale * W))
 
 
-def clip(cell: Cell, constraint: tuple[int, int, int], comp: Composite) -> Cell | None:
+def _reduced(xv: int, qv: int, sw: int) -> tuple[int, int, int]:
+    """An image triple divided by the largest power of two common to its entries (``sw > 0``):
+    the scales ``L^i`` leave hundreds of trailing zero bits, and only ratios count."""
+    shift = ((xv | qv | sw) & -(xv | qv | sw)).bit_length() - 1
+    return xv >> shift, qv >> shift, sw >> shift
+
+
+def clip(
+    cell: Cell, constraint: tuple[int, int, int], comp: Composite, values: list[int] | None = None
+) -> Cell | None:
     """``cell`` cut by the closed half-plane ``ux x_i + uq q_i + v >= 0`` of the current point
-    (``comp`` maps ``z0`` to ``z_i``); None if that is empty.
+    (``comp`` maps ``z0`` to ``z_i``); None if that is empty. ``values``, if given, are the
+    half-plane's values at the vertices times any positive numbers (only their signs count).
 
     Sutherland-Hodgman with exact signs: a vertex on the line stays, so a cell can shrink to a
     segment or a point but never loses a point of its closure.
     """
     verts, lines = cell
     ux, uq, v = constraint
-    values = [ux * xv + uq * qv + v * sw for _, _, _, xv, qv, sw in verts]
+    if values is None:
+        values = [ux * xv + uq * qv + v * sw for _, _, _, xv, qv, sw in verts]
     if min(values) >= 0:
         return cell
     if max(values) < 0:
@@ -96,7 +108,7 @@ def advance(em: ExactMap, cell: Cell, symbol: int) -> Cell:
     ka, kd = em.ka_L[s], em.kd_L[s]
     cx, cq = kd - L * (k + j), kd - L * k
     verts = [
-        (X, Q, W, (L + ka) * xv + L * qv + cx * sw, ka * xv + L * qv + cq * sw, L * sw)
+        (X, Q, W, *_reduced((L + ka) * xv + L * qv + cx * sw, ka * xv + L * qv + cq * sw, L * sw))
         for X, Q, W, xv, qv, sw in cell[0]
     ]
     return verts, cell[1]

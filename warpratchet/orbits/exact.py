@@ -1,8 +1,11 @@
 """Exact arithmetic of the torus map: itineraries, fixed points of ``M^m`` and their residues.
 
-Every coefficient of the map is a float64, i.e. a dyadic rational, so with one power of two
-``L = 2^E`` the numbers ``L b1``, ``L (1 - b2)``, ``L K a_s`` and ``L K d_s``
-(:mod:`~warpratchet.orbits.symbols`) are integers. A point ``(x, q) = (X, Q) / D`` with
+The map here is the torus map whose kick on each piece is ``K f = ka x + kd`` with the float64
+numbers of :func:`~warpratchet.orbits.symbols.kicks` (the slope ``ka`` is the kernels' own
+``K * f'``, so ``DM`` and the residues are those of the kernels' tangent), its cells cut at the
+float64 ``b1`` and ``1 - b2`` as the kernels round them. Every coefficient is a float64, i.e. a
+dyadic rational, so with one power of two ``L = 2^E`` the numbers ``L b1``, ``L (1 - b2)``,
+``L ka`` and ``L kd`` are integers. A point ``(x, q) = (X, Q) / D`` with
 integers ``X, Q, D`` steps to ``(X', Q') / (L D)`` with integer arithmetic only, so the map
 with the kernels' float64 coefficients is iterated *exactly*, including its half-open cells
 (``x <= b1`` left, ``x < 1 - b2`` middle, ``k = floor(t)``, ``j = [x + q' >= 1]``). This is
@@ -23,7 +26,7 @@ from fractions import Fraction
 from typing import NamedTuple
 
 from ..params import MapParams
-from .symbols import piece_coefficients
+from .symbols import kicks
 
 __all__ = ["ExactMap", "Composite", "as_fractions", "from_fractions"]
 
@@ -93,10 +96,10 @@ class ExactMap:
     def __init__(self, params: MapParams) -> None:
         self.params = params
         self.right = 1.0 - params.b2  # as the kernels round it
-        pieces = piece_coefficients(params)
-        self.ka_float = [params.K * a for a, _ in pieces]  # K f' as the kernels round it
-        self.ka = [Fraction(params.K) * Fraction(a) for a, _ in pieces]
-        self.kd = [Fraction(params.K) * Fraction(d) for _, d in pieces]
+        pieces = kicks(params)
+        self.ka_float = [ka for ka, _ in pieces]
+        self.ka = [Fraction(ka) for ka, _ in pieces]
+        self.kd = [Fraction(kd) for _, kd in pieces]
         rationals = [Fraction(params.b1), Fraction(self.right), *self.ka, *self.kd]
         self.L = max(r.denominator for r in rationals)  # all are powers of two: their lcm
         self.log2_L = self.L.bit_length() - 1

@@ -56,31 +56,61 @@ def search(em: ExactMap, period: int, on_leaf: LeafHandler) -> int:
             if period % root == 0:
                 on_leaf(tuple(word), root, cell, comp)
             return
+        # FKM: no symbol below word[depth - root]; skip what could only make such symbols.
+        least = word[depth - root] if depth else 0
         for s, ka, kd, piece_halfplanes in pieces:
+            if 10 * s + 9 < least:
+                continue
             P = cut(cell, comp, piece_halfplanes)
             if P is None:
                 continue
-            # k = floor(t) at the vertices: L t scale W = ka xv + L qv + kd sw.
-            ks = [(ka * xv + L * qv + kd * sw) // (L * sw) for _, _, _, xv, qv, sw in P[0]]
+            # t = q_i + K f at the vertices, as L sw t = ka xv + L qv + kd sw: it gives the
+            # k's (floor t) and the sides of the k and j half-planes without another product.
+            ts, units = _t_values(P, ka, kd, L)
+            ks = [t // unit for t, unit in zip(ts, units, strict=True)]
+            uniform = min(ks) == max(ks)  # every vertex has floor(t) = k: no k half-plane cuts
             for k in range(max(min(ks), K_RANGE[0]), min(max(ks), K_RANGE[-1]) + 1):
-                Pk = cut(P, comp, k_constraints(ka, kd, k, L))
-                if Pk is None:
+                if 10 * s + 2 * (k + 2) + 1 < least:
                     continue
+                Pk, tk, uk = P, ts, units
+                if not uniform:
+                    Pk = cut(P, comp, k_constraints(ka, kd, k, L))
+                    if Pk is None:
+                        continue
+                    tk, uk = _t_values(Pk, ka, kd, L)
+                # x_i + q' - 1 = x_i + t - k - 1, times L sw
+                sides = [L * v[3] + t - (k + 1) * u for v, t, u in zip(Pk[0], tk, uk, strict=True)]
+                low, high = min(sides), max(sides)
                 for j in (0, 1):
                     symbol = 10 * s + 2 * (k + 2) + j
-                    if depth:  # FKM: only prefixes of least rotations
-                        reference = word[depth - root]
-                        if symbol < reference:
-                            continue
-                        new_root = root if symbol == reference else depth + 1
+                    if symbol < least:  # FKM: only prefixes of least rotations
+                        continue
+                    if depth:
+                        new_root = root if symbol == least else depth + 1
                     else:
                         new_root = 1
-                    Pj = clip(Pk, j_constraint(ka, kd, k, j, L), comp)
-                    if Pj is None:
+                    # j = 0 keeps sides <= 0, j = 1 keeps sides >= 0 (closures)
+                    if (high <= 0) if j == 0 else (low >= 0):
+                        Pj = Pk
+                    elif (low > 0) if j == 0 else (high < 0):
                         continue
+                    else:
+                        signed = [-v for v in sides] if j == 0 else sides
+                        Pj = clip(Pk, j_constraint(ka, kd, k, j, L), comp, signed)
+                        if Pj is None:
+                            continue
                     word.append(symbol)
                     visit(advance(em, Pj, symbol), em.extend(comp, symbol), new_root)
                     word.pop()
 
     visit(unit_square(), em.identity(), 1)
     return nodes
+
+
+def _t_values(cell: Cell, ka: int, kd: int, L: int) -> tuple[list[int], list[int]]:
+    """``L sw t`` and ``L sw`` at each vertex, ``t = q_i + K f`` on the piece ``(ka, kd)``."""
+    ts, units = [], []
+    for _, _, _, xv, qv, sw in cell[0]:
+        ts.append(ka * xv + L * qv + kd * sw)
+        units.append(L * sw)
+    return ts, units

@@ -8,6 +8,7 @@ One step of the torus map (the kernels' arithmetic, see :mod:`warpratchet.kernel
 ``f`` is affine on each piece ``s`` of Eq. (fx), ``f = a_s x + d_s`` with ``(a, d) = (l1, 0)``
 (left, ``x <= b1``), ``(-1, c)`` (middle, ``b1 < x < 1 - b2``), ``(l2, -l2)`` (right,
 ``x >= 1 - b2``), so on the cell of the symbol ``(s, k, j)`` the step is the affine map
+(:func:`kicks` gives ``K a_s``, ``K d_s``)
 
     (x', q') = S_s (x, q) + (K d_s - k - j, K d_s - k),   S_s = [[1 + K a_s, 1], [K a_s, 1]],
 
@@ -31,7 +32,7 @@ __all__ = [
     "encode",
     "decode",
     "winding",
-    "piece_coefficients",
+    "kicks",
     "describe",
     "piece_constraints",
     "k_constraints",
@@ -60,9 +61,16 @@ def winding(word: Sequence[int]) -> int:
     return sum(decode(symbol)[1] for symbol in word)
 
 
-def piece_coefficients(params: MapParams) -> tuple[tuple[float, float], ...]:
-    """``(a_s, d_s)`` with ``f = a_s x + d_s`` on piece ``s`` (Eq. fx), as the kernels use them."""
-    return ((params.l1, 0.0), (-1.0, params.c), (params.l2, -params.l2))
+def kicks(params: MapParams) -> tuple[tuple[float, float], ...]:
+    """``(K a_s, K d_s)`` per piece, ``K f = K a_s x + K d_s`` (Eq. fx), as float64 products.
+
+    ``K a_s`` is the slope ``K f'`` exactly as the kernels' tangent map rounds it
+    (``(K * slope) * dx``), so ``S_s`` is their ``DM`` bit for bit; ``K d_s`` is rounded once.
+    The kernels round ``K * f(x)`` at every step instead; the two agree to an ulp or so.
+    """
+    K = params.K
+    right = K * params.l2
+    return ((K * params.l1, 0.0), (-K, K * params.c), (right, -right))
 
 
 def describe(word: Sequence[int]) -> list[list]:
