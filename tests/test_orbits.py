@@ -37,18 +37,17 @@ OTHER = MapParams(1.7, 0.2, 0.3)  # weak kicks
 
 # -- an independent exact map: Fractions straight from Eqs. (cpem), (fx) -------------------------------
 class FractionMap:
-    """The torus map in Fractions: kicks ``K f = ka x + kd`` with the float64 products ``K * l1``,
-    ``-K``, ``K * l2`` (the kernels' tangent slopes) and ``K * c``, ``-K * l2``; cuts at the float64
-    ``b1`` and ``1 - b2``; ``k = floor(t)``, ``j = [x + q' >= 1]`` (Eqs. cpem, fx)."""
+    """The paper's torus map in Fractions: Eq. (fx) with Eq. (mmc) solved exactly at the float64
+    ``K, b1, b2`` (continuous and of zero mean); ``k = floor(t)``, ``j = [x + q' >= 1]`` (Eq. cpem)."""
 
     def __init__(self, p: MapParams):
-        self.K, self.b1, self.right = Fraction(p.K), Fraction(p.b1), Fraction(1.0 - p.b2)
-        kl2 = p.K * p.l2
-        self.kicks = [
-            (Fraction(p.K * p.l1), Fraction(0)),
-            (-self.K, Fraction(p.K * p.c)),
-            (Fraction(kl2), -Fraction(kl2)),
-        ]
+        K, b1, b2 = Fraction(p.K), Fraction(p.b1), Fraction(p.b2)
+        # Eq. (mmc) from continuity at b1 and 1 - b2 and zero mean, re-derived here:
+        # l1 b1 = c - b1, c - (1 - b2) = -l2 b2, int f = 0 -> c = (1 - b2) / (2 - b1 - b2).
+        c = (1 - b2) / (2 - b1 - b2)
+        l1, l2 = (c - b1) / b1, (1 - b2 - c) / b2
+        self.K, self.b1, self.right, self.c = K, b1, 1 - b2, c
+        self.kicks = [(K * l1, Fraction(0)), (-K, K * c), (K * l2, -K * l2)]
 
     def piece(self, x):
         return 0 if x <= self.b1 else (1 if x < self.right else 2)
@@ -153,9 +152,9 @@ def _cycles(orbits) -> set[frozenset]:
 def _period_one_closed_form(p: MapParams) -> dict:
     """Period-1 points: q = 0 and K f(x) = k (x' = x + q' - j = x forces q' = j = 0), Eq. (xp).
 
-    With K f = ka x + kd on each piece (:class:`FractionMap`): middle x = (kd - k)/K, i.e.
-    c - k/K (Eq. xp) to rounding, R = K/4 (DM = [[1 - K, 1], [-K, 1]], Eq. eig); left
-    x = k/ka, right x = 1 + k/ka, R = -ka/4. Returns {x (exact): (k, R exact)}.
+    With K f = ka x + kd on each piece (:class:`FractionMap`): middle x = c - k/K (Eq. xp),
+    R = K/4 (DM = [[1 - K, 1], [-K, 1]], Eq. eig); left x = k/(K l1), right x = 1 + k/(K l2),
+    R = -K l/4. Returns {x (exact): (k, R exact)}.
     """
     fm = FractionMap(p)
     out = {}
@@ -175,8 +174,9 @@ def test_acceptance_period_one_at_K3():
     assert sorted(o["winding"] for o in elliptic) == [-1, 0, 1]
     for o in elliptic:
         assert o["residue"] == 0.75
-        assert o["x"] == [float((Fraction(3.0 * K3.c) - o["winding"]) / 3)] and o["p"] == [0.0]
-        assert abs(o["x"][0] - (K3.c - o["winding"] / 3)) <= 2 * 2.0**-53  # Eq. (xp)
+        assert o["x"] == [float(FractionMap(K3).c - Fraction(o["winding"], 3))] and o["p"] == [
+            0.0
+        ]  # Eq. (xp)
         assert o["nu"] == o["winding"] and o["itinerary"] == [["middle", o["winding"], 0]]
     assert report["counts"] == {"elliptic": 3, "hyperbolic": 3, "parabolic": 0, "families": 0}
     assert {"orbits", "families", "period", "K", "b1", "b2"} <= set(report)
@@ -203,9 +203,34 @@ def test_period_one_orbits_are_the_closed_form(K, b1, b2):
         assert o.kind == ("elliptic" if 0 < residue < 1 else "hyperbolic")
 
 
+def test_parabolic_orbits_at_K2():
+    """tr(S_a S_b) = 2 + 2a + 2b + ab for S_c = [[1 + c, 1], [c, 1]]: with the middle slope b = -K = -2
+    it is -2 whatever a, so every period-2 orbit with one middle step has R = 1 exactly (parabolic),
+    and the middle fixed point R = K/4 = 1/2."""
+    p = MapParams(2.0, 0.1, 0.02)
+    assert [(o.kind, o.residue) for o in periodic_orbits(p, 1) if o.itinerary[0] // 10 == 1] == [
+        ("elliptic", 0.5)
+    ]
+    mixed = [o for o in periodic_orbits(p, 2) if sorted(s // 10 for s in o.itinerary) in ([0, 1], [1, 2])]
+    assert mixed
+    for o in mixed:
+        assert o.residue == 1.0 and o.kind == "parabolic"
+
+
+@settings(max_examples=25, deadline=None)
+@given(K=st.floats(0.05, 3.95), b1=st.floats(1e-3, 0.6), b2=st.floats(1e-3, 0.6))
+def test_brute_force_agrees_at_random_parameters(K, b1, b2):
+    if b1 + b2 >= 0.95:
+        return
+    p = MapParams(K, b1, b2)
+    for m in (1, 2):
+        assert _cycles(periodic_orbits(p, m)) == brute_force(p, m), f"period {m}"
+
+
 # -- every orbit, once -----------------------------------------------------------------------------------
 @pytest.mark.parametrize(("p", "periods"), [(K3, 4), (K299, 4), (OTHER, 3)], ids=["K3", "K2.99", "K1.7"])
 def test_brute_force_over_all_words_finds_the_same_orbits(p, periods):
+    """Every isolated orbit of period <= 4 that any of the 30^m words yields, and no other."""
     for m in range(1, periods + 1):
         assert _cycles(periodic_orbits(p, m)) == brute_force(p, m), f"period {m}"
 
@@ -222,6 +247,23 @@ def test_each_cycle_once_with_its_least_period_and_least_rotation(p):
                 assert point not in seen, f"{point} in two cycles (periods {seen.get(point)} and {m})"
                 seen[point] = m
             assert o.kind in KINDS and o.nu == o.winding / m
+
+
+def test_orbits_through_the_kinks_at_K3():
+    """At K = 3 periodic orbits run through the kinks x = b1, 1 - b2 (corners of C, Eq. Cs). With a
+    force continuous only to an ulp (float64 l1, c) such an orbit can vanish or split; the paper's
+    force is exactly continuous, so each is found once, in the closed piece (left: x <= b1, right:
+    x >= 1 - b2)."""
+    fm = FractionMap(K3)
+    (ka0, kd0), (ka1, kd1), (ka2, kd2) = fm.kicks
+    assert ka0 * fm.b1 + kd0 == ka1 * fm.b1 + kd1 and ka1 * fm.right + kd1 == ka2 * fm.right + kd2
+    on_kink = 0
+    for o in periodic_orbits(K3, 3):
+        for (x, _), symbol in zip(o.exact, o.itinerary, strict=True):
+            if x in (fm.b1, fm.right):
+                on_kink += 1
+                assert symbol // 10 == (0 if x == fm.b1 else 2)
+    assert on_kink >= 7
 
 
 def test_winding_is_the_momentum_gain():
@@ -384,3 +426,24 @@ def test_bad_period_is_refused_in_one_line(period):
 def test_params_must_be_MapParams():
     with pytest.raises(ValueError, match="is not a MapParams"):
         enumerate_orbits((3.0, 0.1, 0.01), 1)
+
+
+def test_benchmark_quick(capsys):
+    """benchmarks/orbits.py runs and reports consistent rows (no timings checked)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "orbits.py"
+    spec = importlib.util.spec_from_file_location("orbits_benchmark", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    assert module.main(["--quick", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert [(c["K"], c["b1"], c["b2"]) for c in report["cases"]] == module.CASES
+    for case in report["cases"]:
+        assert [row["period"] for row in case["rows"]] == [1, 2, 3, 4]
+        for row in case["rows"]:
+            assert row["candidates"] <= row["nodes"] <= sum(30**d for d in range(row["period"] + 1))
+            assert row["brute_force_extrapolated_seconds"] > 0
+    families = report["k3_families"]
+    assert math.isclose(families["one_minus_families"], families["S_C"], rel_tol=1e-12)

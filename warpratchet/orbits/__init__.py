@@ -8,9 +8,10 @@ composes to ``z -> A z + b`` with ``A = DM^m``, and a point of exact period ``m`
 * enumerates the itineraries with a non-empty cell by an exact tree search
   (:mod:`~warpratchet.orbits.search`, :mod:`~warpratchet.orbits.cells`), one least rotation
   per cycle;
-* decides each one in exact integer arithmetic (:mod:`~warpratchet.orbits.exact`): the float64
-  coefficients are dyadic rationals, so the map the kernels iterate is solved and iterated
-  exactly, half-open cells included, and each orbit is found exactly once;
+* decides each one in exact integer arithmetic (:mod:`~warpratchet.orbits.exact`) for the
+  paper's map at the float64 ``K, b1, b2`` (Eq. mmc solved exactly, so the force is exactly
+  continuous and orbits through its kinks are not lost or doubled): solved and iterated
+  exactly, half-open cells included, each orbit is found exactly once;
 * reports each orbit's points, winding ``w`` (Eq. am), ``nu = w / m`` (Eq. AIn), Greene's residue
   ``R = (2 - tr DM^m) / 4`` and kind, and, where ``det(A - I) = 0``, the *families*: polygons of
   periodic points (at K = 3, ``DM^3 = I`` on the middle piece, Eq. eig, and the period-3

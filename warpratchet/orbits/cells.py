@@ -54,7 +54,8 @@ def _vertex(l1: tuple[int, int, int], l2: tuple[int, int, int], comp: Composite)
 
 def _reduced(xv: int, qv: int, sw: int) -> tuple[int, int, int]:
     """An image triple divided by the largest power of two common to its entries (``sw > 0``):
-    the scales ``L^i`` leave hundreds of trailing zero bits, and only ratios count."""
+    the scales (products of the pieces' denominators ``L_s``) leave many trailing zero bits, and
+    only ratios count."""
     shift = ((xv | qv | sw) & -(xv | qv | sw)).bit_length() - 1
     return xv >> shift, qv >> shift, sw >> shift
 
@@ -102,10 +103,9 @@ def clip(
 
 def advance(em: ExactMap, cell: Cell, symbol: int) -> Cell:
     """The same cell with its vertices' images carried one step further, by ``symbol``'s affine map."""
-    L = em.L
     s, rest = divmod(symbol, 10)
     k, j = rest // 2 - 2, rest % 2
-    ka, kd = em.ka_L[s], em.kd_L[s]
+    L, ka, kd = em.L[s], em.ka_L[s], em.kd_L[s]
     cx, cq = kd - L * (k + j), kd - L * k
     verts = [
         (X, Q, W, *_reduced((L + ka) * xv + L * qv + cx * sw, ka * xv + L * qv + cq * sw, L * sw))

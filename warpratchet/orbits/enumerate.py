@@ -15,8 +15,9 @@ each candidate itinerary (a least rotation, so each cycle once) exactly
   the segment of that line in the cell; otherwise there is no periodic point. A family whose
   points all have a lower period (the map of ``V^d``, ``d < r``, fixes its vertices) is skipped.
 
-Periodic points are those of the map with the kernels' float64 coefficients, exactly; the
-reported coordinates are their correctly rounded float64 values.
+Periodic points are those of the paper's map at the float64 ``K, b1, b2`` (Eq. mmc solved
+exactly, :mod:`~warpratchet.orbits.exact`); the reported coordinates are their correctly
+rounded float64 values.
 
 Pure: no Warp, no I/O.
 """
@@ -51,8 +52,8 @@ __all__ = [
 
 #: The kinds of an orbit, by Greene's residue ``R = (2 - tr DM^m) / 4``.
 KINDS = ("elliptic", "hyperbolic", "parabolic")
-#: Uncertainty, in ulps, of the slopes ``l1, l2`` (Eq. mmc, computed to a few ulps by
-#: :class:`~warpratchet.params.MapParams`) that sets the parabolic tolerance of a residue.
+#: Ulps by which the kernels' slopes ``K * l1``, ``K * l2`` (float64 ``l1, l2`` of Eq. mmc,
+#: good to a few ulps, times K) may miss the exact ones: the parabolic tolerance of a residue.
 SLOPE_ULPS = 4
 
 
@@ -62,8 +63,9 @@ class Orbit:
 
     ``x, p`` have shape ``(m,)``: the orbit on the unit torus, from the point whose itinerary
     is the least rotation. ``nu = w / m`` (Eq. AIn); ``residue`` is Greene's ``R`` (exact for the
-    float64 coefficients, then rounded); ``kind`` is ``"parabolic"`` when ``|R|`` or ``|R - 1|``
-    is within ``residue_tolerance`` (what ``SLOPE_ULPS`` ulps in ``l1, l2`` can change), else
+    paper's map at the float64 ``K, b1, b2``, then rounded); ``kind`` is ``"parabolic"`` when
+    ``|R|`` or ``|R - 1|`` is within ``residue_tolerance`` (what ``SLOPE_ULPS`` ulps in the
+    slopes ``K l1, K l2`` can change: the kernels' tangent uses them rounded), else
     ``"elliptic"`` (``0 < R < 1``) or ``"hyperbolic"``.
     """
 
@@ -75,7 +77,8 @@ class Orbit:
     residue: float
     residue_tolerance: float
     kind: str
-    #: The exact points as integers ``(X, Q, D)``: ``(x, q) = (X / D, Q / D)``.
+    #: The exact points as integers ``(X, Q, D)``: ``(x, q) = (X / D, Q / D)``; ``x, p`` are
+    #: their correctly rounded float64 values.
     points: tuple[tuple[int, int, int], ...] = field(repr=False, compare=False)
 
     @property
@@ -85,7 +88,7 @@ class Orbit:
 
     @cached_property
     def exact(self) -> tuple[tuple[Fraction, Fraction], ...]:
-        """The exact points ``(x, q)`` of the map with float64 coefficients, as Fractions."""
+        """The exact points ``(x, q)`` as Fractions."""
         return tuple(as_fractions(point) for point in self.points)
 
 

@@ -36,8 +36,7 @@ def search(em: ExactMap, period: int, on_leaf: LeafHandler) -> int:
 
     Returns the number of tree nodes visited (the cost).
     """
-    L = em.L
-    pieces = [(s, em.ka_L[s], em.kd_L[s], piece_constraints(s, em.b1_L, em.right_L, L)) for s in range(3)]
+    pieces = [(s, em.L[s], em.ka_L[s], em.kd_L[s], piece_constraints(s, em.b1, em.right)) for s in range(3)]
     word: list[int] = []
     nodes = 0
 
@@ -58,7 +57,7 @@ def search(em: ExactMap, period: int, on_leaf: LeafHandler) -> int:
             return
         # FKM: no symbol below word[depth - root]; skip what could only make such symbols.
         least = word[depth - root] if depth else 0
-        for s, ka, kd, piece_halfplanes in pieces:
+        for s, L, ka, kd, piece_halfplanes in pieces:
             if 10 * s + 9 < least:
                 continue
             P = cut(cell, comp, piece_halfplanes)

@@ -8,7 +8,7 @@ One step of the torus map (the kernels' arithmetic, see :mod:`warpratchet.kernel
 ``f`` is affine on each piece ``s`` of Eq. (fx), ``f = a_s x + d_s`` with ``(a, d) = (l1, 0)``
 (left, ``x <= b1``), ``(-1, c)`` (middle, ``b1 < x < 1 - b2``), ``(l2, -l2)`` (right,
 ``x >= 1 - b2``), so on the cell of the symbol ``(s, k, j)`` the step is the affine map
-(:func:`kicks` gives ``K a_s``, ``K d_s``)
+(:func:`~warpratchet.orbits.exact.paper_kicks` gives ``K a_s``, ``K d_s``)
 
     (x', q') = S_s (x, q) + (K d_s - k - j, K d_s - k),   S_s = [[1 + K a_s, 1], [K a_s, 1]],
 
@@ -23,8 +23,7 @@ Pure: no Warp, no I/O.
 from __future__ import annotations
 
 from collections.abc import Sequence
-
-from ..params import MapParams
+from fractions import Fraction
 
 __all__ = [
     "PIECES",
@@ -32,7 +31,6 @@ __all__ = [
     "encode",
     "decode",
     "winding",
-    "kicks",
     "describe",
     "piece_constraints",
     "k_constraints",
@@ -61,18 +59,6 @@ def winding(word: Sequence[int]) -> int:
     return sum(decode(symbol)[1] for symbol in word)
 
 
-def kicks(params: MapParams) -> tuple[tuple[float, float], ...]:
-    """``(K a_s, K d_s)`` per piece, ``K f = K a_s x + K d_s`` (Eq. fx), as float64 products.
-
-    ``K a_s`` is the slope ``K f'`` exactly as the kernels' tangent map rounds it
-    (``(K * slope) * dx``), so ``S_s`` is their ``DM`` bit for bit; ``K d_s`` is rounded once.
-    The kernels round ``K * f(x)`` at every step instead; the two agree to an ulp or so.
-    """
-    K = params.K
-    right = K * params.l2
-    return ((K * params.l1, 0.0), (-K, K * params.c), (right, -right))
-
-
 def describe(word: Sequence[int]) -> list[list]:
     """An itinerary as JSON-friendly ``[piece name, k, j]`` triples."""
     out = []
@@ -83,26 +69,28 @@ def describe(word: Sequence[int]) -> list[list]:
 
 
 # -- the cell of a symbol as half-planes u_x x + u_q q + v >= 0 in the current point (x, q) ------------
-# Any number type: Fractions with one = 1 (exact polygons), or integers scaled by one = L
-# (ExactMap's scaled coefficients, in the tree search). Only the closure matters there (strict or
-# not changes no area); the half-open rules are applied exactly by ExactMap.step. x >= 0 and x < 1
-# are not listed: the unit square, and the previous step's j, imply them.
-def piece_constraints(piece: int, b1, right, one=1) -> tuple[tuple, ...]:
+# Integer lines (any positive multiple of a half-plane is the same half-plane). Only the closure
+# matters there (strict or not changes no area); the half-open rules are applied exactly by
+# ExactMap.step. x >= 0 and x < 1 are not listed: the unit square, and the previous step's j,
+# imply them.
+def piece_constraints(piece: int, b1: Fraction, right: Fraction) -> tuple[tuple[int, int, int], ...]:
     """Half-planes of piece ``s`` of Eq. (fx): left ``x <= b1``, middle ``b1 < x < right``,
-    right ``x >= right`` (``right = 1 - b2`` as the kernels round it)."""
+    right ``x >= right`` (``right = 1 - b2``)."""
+    left_edge = (b1.denominator, 0, -b1.numerator)  # x - b1 >= 0, times the denominator
+    right_edge = (right.denominator, 0, -right.numerator)
     if piece == 0:
-        return ((-one, 0, b1),)
+        return (tuple(-v for v in left_edge),)
     if piece == 1:
-        return ((one, 0, -b1), (-one, 0, right))
-    return ((one, 0, -right),)
+        return (left_edge, tuple(-v for v in right_edge))
+    return (right_edge,)
 
 
-def k_constraints(ka, kd, k: int, one=1) -> tuple[tuple, tuple]:
-    """``k <= t < k + 1`` with ``t = q + K f = ka x + q + kd`` (``ka = K a_s``, ``kd = K d_s``)."""
+def k_constraints(ka: int, kd: int, k: int, one: int) -> tuple[tuple, tuple]:
+    """``k <= t < k + 1`` with ``t = q + K f = (ka x + kd) / one + q`` (integers over ``one``)."""
     return ((ka, one, kd - k * one), (-ka, -one, (k + 1) * one - kd))
 
 
-def j_constraint(ka, kd, k: int, j: int, one=1) -> tuple:
+def j_constraint(ka: int, kd: int, k: int, j: int, one: int) -> tuple:
     """``x + q' < 1`` (``j = 0``) or ``>= 1`` (``j = 1``), with ``q' = t - k``."""
     sign = 1 - 2 * j
     return (-sign * (one + ka), -sign * one, sign * ((1 + k) * one - kd))
