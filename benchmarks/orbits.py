@@ -21,7 +21,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import itertools
 import json
 import sys
 import time
@@ -31,33 +30,19 @@ import numpy as np
 
 from warpratchet import MapParams, theory
 from warpratchet.orbits import KINDS, enumerate_orbits, orbit_families
+from warpratchet.orbits.words import SYMBOLS, all_words, compose, fixed_points
 
 #: (K, b1, b2): the brief's two cases (Fig. 7's range at K = 3, Fig. 9's path at K = 2.99).
 CASES = [(3.0, 0.1, 0.01), (2.99, 0.25, 0.05)]
-SYMBOLS = 30
 
 
 def _brute_force_seconds(p: MapParams, m: int) -> float:
     """Seconds for the float64 brute force over all 30^m words: compose, solve, test the first cell."""
     start = time.perf_counter()
-    symbols = np.array(list(itertools.product(range(3), range(-2, 3), range(2))))
-    words = np.array(list(itertools.product(range(SYMBOLS), repeat=m)))
-    n = len(words)
-    a, d = np.array([p.l1, -1.0, p.l2]), np.array([0.0, p.c, -p.l2])
-    A = np.broadcast_to(np.eye(2), (n, 2, 2)).copy()
-    b = np.zeros((n, 2))
-    for i in range(m):
-        s, k, j = symbols[words[:, i]].T
-        ka, kd = p.K * a[s], p.K * d[s]
-        S = np.stack([np.stack([1 + ka, np.ones(n)], -1), np.stack([ka, np.ones(n)], -1)], -2)
-        A = S @ A
-        b = np.einsum("nij,nj->ni", S, b) + np.stack([kd - k - j, kd - k], -1)
-    M = A - np.eye(2)
-    det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x = -(M[:, 1, 1] * b[:, 0] - M[:, 0, 1] * b[:, 1]) / det
-        q = -(-M[:, 1, 0] * b[:, 0] + M[:, 0, 0] * b[:, 1]) / det
-    s = symbols[words[:, 0], 0]
+    words = all_words(m)
+    kicks = np.array([[p.K * p.l1, 0.0], [-p.K, p.K * p.c], [p.K * p.l2, -p.K * p.l2]])
+    x, q, _ = fixed_points(*compose(words, kicks))
+    s = SYMBOLS[words[:, 0], 0]
     np.count_nonzero((x >= 0) & (x < 1) & (q >= 0) & (q < 1) & ((s == 0) == (x <= p.b1)))
     return time.perf_counter() - start
 
@@ -82,7 +67,7 @@ def _run_case(p: MapParams, max_period: int, budget: float, brute_max: int, log)
             "cpu_seconds": cpu,
             "nodes": result.nodes,
             "candidates": result.candidates,
-            "words": SYMBOLS**m,
+            "words": len(SYMBOLS) ** m,
             "orbits": {kind: kinds.get(kind, 0) for kind in KINDS},
             "families": {"polygon": shapes.get("polygon", 0), "segment": shapes.get("segment", 0)},
             "elliptic_nu": sorted({o.nu for o in result.orbits if o.kind == "elliptic"}),

@@ -7,7 +7,6 @@ without the module's search, cells or integer arithmetic.
 
 from __future__ import annotations
 
-import itertools
 import json
 import math
 from collections import defaultdict
@@ -27,6 +26,7 @@ from warpratchet.orbits import (
     orbits_report,
     periodic_orbits,
 )
+from warpratchet.orbits.words import SYMBOLS, all_words, compose, fixed_points
 from warpratchet.sumrule import census
 
 U = 2.0**-53
@@ -76,30 +76,19 @@ def brute_force(p: MapParams, m: int) -> set[frozenset]:
     Degenerate words (``det(A - I) = 0``, families) are left out. Returns the cycles as
     frozensets of exact points.
     """
-    symbols = np.array(list(itertools.product(range(3), range(-2, 3), range(2))))  # (piece, k, j)
-    words = np.array(list(itertools.product(range(30), repeat=m)))
+    words = all_words(m)
     n = len(words)
     kicks = np.array([[float(v) for v in kick] for kick in FractionMap(p).kicks])  # (3, 2)
     right = 1.0 - p.b2
     keep = np.ones(n, dtype=bool)
     for r in range(m):  # rotation r starts with symbol r
-        A = np.broadcast_to(np.eye(2), (n, 2, 2)).copy()
-        b = np.zeros((n, 2))
-        for i in range(m):
-            s, k, j = symbols[words[:, (r + i) % m]].T
-            ka, kd = kicks[s, 0], kicks[s, 1]
-            S = np.stack([np.stack([1 + ka, np.ones(n)], -1), np.stack([ka, np.ones(n)], -1)], -2)
-            A = S @ A
-            b = np.einsum("nij,nj->ni", S, b) + np.stack([kd - k - j, kd - k], -1)
-        M = A - np.eye(2)
-        det = M[:, 0, 0] * M[:, 1, 1] - M[:, 0, 1] * M[:, 1, 0]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            x = -(M[:, 1, 1] * b[:, 0] - M[:, 0, 1] * b[:, 1]) / det
-            q = -(-M[:, 1, 0] * b[:, 0] + M[:, 0, 0] * b[:, 1]) / det
-            inverse_norm = (np.abs(M).sum(-1).max(-1) + 1.0) / np.abs(det)
+        A, b = compose(np.roll(words, -r, axis=1), kicks)
+        x, q, det = fixed_points(A, b)
+        with np.errstate(divide="ignore"):
+            inverse_norm = (np.abs(A - np.eye(2)).sum(-1).max(-1) + 1.0) / np.abs(det)
         # z = -(A - I)^-1 b with A, b good to ~m u |A|, u |b| (z in the unit square):
         tol = 64 * U * inverse_norm * (np.abs(A).sum(-1).max(-1) + np.abs(b).max(-1) + 1)
-        s, k, j = symbols[words[:, r]].T
+        s, k, j = SYMBOLS[words[:, r]].T
         ka, kd = kicks[s, 0], kicks[s, 1]
         with np.errstate(invalid="ignore"):  # nan where det = 0, dropped below
             t = q + ka * x + kd
@@ -114,7 +103,7 @@ def brute_force(p: MapParams, m: int) -> set[frozenset]:
     fm = FractionMap(p)
     found = set()
     for word in words[keep]:
-        steps = [symbols[w] for w in word]
+        steps = [SYMBOLS[w] for w in word]
         A = [[Fraction(1), Fraction(0)], [Fraction(0), Fraction(1)]]
         b = [Fraction(0), Fraction(0)]
         for s, k, j in steps:

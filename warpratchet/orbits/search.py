@@ -4,7 +4,7 @@ Depth-first over symbols (:mod:`~warpratchet.orbits.symbols`): a node is a prefi
 symbols with its composite ``z0 -> z_i`` (:class:`~warpratchet.orbits.exact.Composite`) and its
 exact cell (:mod:`~warpratchet.orbits.cells`). A child cuts the cell by the half-planes of the
 next symbol pulled back to ``z0``; an empty cell prunes the whole subtree. The number of
-admissible itineraries grows like ``e^(h m)`` (about ``3.2^m`` at K = 3, b1 = 0.1, b2 = 0.01),
+admissible itineraries grows like ``e^(h m)`` (about ``3.3^m`` at K = 3, b1 = 0.1, b2 = 0.01),
 far below the ``30^m`` words of a brute-force enumeration. Everything is exact, so the leaves
 are exactly the necklace itineraries whose (closed) cells are not empty.
 
