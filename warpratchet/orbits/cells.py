@@ -5,9 +5,9 @@ integer lines ``a x + b q + c >= 0`` in ``z0`` and its vertices homogeneous inte
 ``(X, Q, W)``, ``W > 0`` (the point ``(X/W, Q/W)``), each the crossing of two edge lines, so
 the numbers never grow beyond twice a line's size. Each vertex also carries its image under the
 itinerary so far, ``z_i = (x_i, q_i)``, as ``(xv, qv, sw)``, a positive multiple of
-``(x_i, q_i, 1)``: the next
-symbol's half-planes have small integer coefficients in ``z_i``, so testing a vertex costs
-small-by-large products, and a child updates ``(xv, qv, sw)`` by one step of the map.
+``(x_i, q_i, 1)``: the next symbol's half-planes have small integer coefficients in ``z_i``, so
+testing a vertex costs small-by-large products, and a child updates ``(xv, qv, sw)`` by one
+step of the map.
 
 Integers, not floats: a cell of an ``m``-step itinerary is ``~Lambda^-m`` thin (``Lambda`` up to
 ``1 + K l2 ~ 140`` per step at b2 = 0.01) while its pulled-back edges are nearly parallel, so

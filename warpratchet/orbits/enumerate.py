@@ -11,7 +11,7 @@ each candidate itinerary (a least rotation, so each cycle once) exactly
 * ``det(A - I) = 0`` (``tr A = 2``, Greene's residue exactly 0): if ``A = I`` and ``b = 0``
   every point of the itinerary's cell is periodic, a :class:`Family` with that polygon (at
   K = 3 the middle piece has ``DM^3 = I``, Eq. eig, and period-3 families fill the islands of
-  Appendices B-E); if ``A != I`` and ``(A - I) z = -b`` has a line of solutions, the family is
+  Appendices D-E); if ``A != I`` and ``(A - I) z = -b`` has a line of solutions, the family is
   the segment of that line in the cell; otherwise there is no periodic point. A family whose
   points all have a lower period (the map of ``V^d``, ``d < r``, fixes its vertices) is skipped.
 
