@@ -1,0 +1,49 @@
+"""Every periodic orbit of the torus map with its residue, and the families of them (issue 16).
+
+The torus map (Eq. cpem mod 1, in the kernels' variables ``x, q = p mod 1``) is affine on each
+cell of a symbol ``(piece of Eq. fx, k = floor(q + K f), j)``; an itinerary of ``m`` symbols
+composes to ``z -> A z + b`` with ``A = DM^m``, and a point of exact period ``m`` solves
+``(A - I) z = -b`` inside the itinerary's cell. The package
+
+* enumerates the itineraries with a non-empty cell by an exact tree search
+  (:mod:`~warpratchet.orbits.search`, :mod:`~warpratchet.orbits.cells`), one least rotation
+  per cycle;
+* decides each one in exact integer arithmetic (:mod:`~warpratchet.orbits.exact`) for the
+  paper's map at the float64 ``K, b1, b2`` (Eq. mmc solved exactly, so the force is exactly
+  continuous and orbits through its kinks are not lost or doubled): solved and iterated
+  exactly, half-open cells included, each orbit is found exactly once;
+* reports each orbit's points, winding ``w`` (Eq. am), ``nu = w / m`` (Eq. AIn), Greene's residue
+  ``R = (2 - tr DM^m) / 4`` and kind, and, where ``det(A - I) = 0``, the *families*: polygons of
+  periodic points (at K = 3, ``DM^3 = I`` on the middle piece, Eq. eig, and the period-3
+  families tile the islands of Appendices D-E: their areas are Eqs. SL, SR, and the rest of the
+  torus is ``S_C`` of Eqs. SC1-SC3) or segments.
+
+Public API: :func:`enumerate_orbits` (orbits, families and the search's cost),
+:func:`periodic_orbits`, :func:`orbit_families`, :func:`orbits_report` (the CLI's JSON object)
+and :func:`format_orbits` (its text form). Pure: no Warp, no I/O.
+"""
+
+from .enumerate import (
+    KINDS,
+    SLOPE_ULPS,
+    Enumeration,
+    Family,
+    Orbit,
+    enumerate_orbits,
+    orbit_families,
+    periodic_orbits,
+)
+from .report import format_orbits, orbits_report
+
+__all__ = [
+    "KINDS",
+    "SLOPE_ULPS",
+    "Enumeration",
+    "Family",
+    "Orbit",
+    "enumerate_orbits",
+    "periodic_orbits",
+    "orbit_families",
+    "orbits_report",
+    "format_orbits",
+]
