@@ -106,8 +106,7 @@ def command(args: argparse.Namespace) -> int:
         observers.append(sink)
         chunk_steps = sink.chunk_steps
     if recorder is not None:
-        observers.append(recorder)
-        chunk_steps = chunk_steps or recorder.every  # frames at exact multiples of --rerun-every
+        observers.append(recorder)  # its frames end chunks themselves (Observer.next_stop)
     start = time.perf_counter()
     try:
         ensemble.run(spec.steps, observers, chunk_steps=chunk_steps)
