@@ -93,6 +93,8 @@ def test_sigint_during_ensemble_run_leaves_a_consistent_ensemble(tmp_path):
 @pytest.mark.parametrize("archived", [False, True])
 def test_sigint_during_cli_run_is_one_line_and_exit_130(tmp_path, archived):
     """With an archive (ready: the file exists), or a recording (ready: the .rrd exists)."""
+    if not archived:
+        pytest.importorskip("rerun", reason="rerun-sdk 0.41 (the rerun extra) needs Python >= 3.11")
     argv = ["run", *MAP_FLAGS, "--points", "40000", "--steps", "100000000", "--chunk-steps", "1000"]
     path = tmp_path / ("run.h5" if archived else "run.rrd")
     argv += ["--out" if archived else "--rerun", str(path)]

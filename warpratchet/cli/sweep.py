@@ -13,7 +13,7 @@ import math
 
 from ..errors import ParameterError, check_count
 from ..observables import MIN_CHAOTIC_POINTS
-from .common import UsageError, emit_json, spec_flag, spec_flags, spec_from_args
+from .common import Interrupted, UsageError, emit_json, spec_flag, spec_flags, spec_from_args
 
 #: What each kind of sweep reads besides --K: the flags it needs (any other is an error).
 _SWEEP_NEEDS = {
@@ -208,6 +208,13 @@ def command(args: argparse.Namespace) -> int:
         )
     except ImportError as exc:
         raise UsageError(str(exc)) from None
+    except KeyboardInterrupt:
+        kept = (
+            f"{args.out} keeps them: the same command computes only the missing points"
+            if args.out is not None
+            else "nothing was saved (no --out)"
+        )
+        raise Interrupted(f"after {len(computed)} of {len(points)} points; {kept}") from None
     if args.json:
         emit_json({"rows": rows})
     else:
