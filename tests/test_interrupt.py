@@ -111,7 +111,8 @@ def test_sigint_during_cli_run_is_one_line_and_exit_130(tmp_path, archived):
     [line] = stderr.strip().splitlines()
     assert line.startswith("warpratchet: interrupted at step ") and "of 100000000" in line
     step = int(line.split("at step ")[1].split()[0])
-    assert step > 0 and step % 1000 == 0
+    # Chunks end at multiples of --chunk-steps, and at a recording's (log-spaced) frames.
+    assert step > 0 and (step % 1000 == 0 or not archived)
     if archived:
         assert f"warpratchet resume {path} --steps 100000000" in line
         from warpratchet import open_archive
