@@ -120,6 +120,7 @@ class RecordingSink(Observer):
         self.recording: PhaseSpaceRecording | None = None
         self.plan: Plan | None = None
         self._throughput: float | None = None
+        self._setup_seconds = 0.0  # the probe and opening the recording, paid from the time budget
         self._kernel_seconds = 0.0  # kernel time and steps seen so far: the kernel's real speed
         self._steps_seen = 0
         self._last_row = 0
@@ -203,6 +204,7 @@ class RecordingSink(Observer):
     def begin(self, ensemble: Ensemble, target_step: int) -> None:
         if self.recording is not None and self.recording.closed:
             raise ValueError("this RecordingSink is closed (it records one run): make a new one")
+        setup = time.perf_counter()
         # The time budget needs the kernel's real speed (CPU, GPU, a faster kernel): measured.
         # With a fixed `every` the cadence is the caller's, and the series has the frames only.
         self._throughput = None if self.every is not None else probe_throughput(ensemble)
@@ -218,6 +220,7 @@ class RecordingSink(Observer):
         self.options["info"] = {**(self.options.get("info") or {}), "frames": self.plan.reason}
         self.options.setdefault("steps", target_step - ensemble.step)
         self.open(ensemble, self.plan.points)
+        self._setup_seconds = time.perf_counter() - setup
         if not self.frames or self.frames[-1] != ensemble.step:
             self.log_frame(ensemble)
 
