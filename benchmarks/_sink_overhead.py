@@ -32,8 +32,8 @@ def log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
-def fresh(points: int) -> Ensemble:
-    return Ensemble.sample(PARAMS, points, INIT, SEED)
+def fresh(points: int, cls: type[Ensemble] = Ensemble) -> Ensemble:
+    return cls.sample(PARAMS, points, INIT, SEED)
 
 
 def warm_up() -> None:
@@ -41,10 +41,18 @@ def warm_up() -> None:
     fresh(64).run(16)
 
 
-def options(doc: str, argv: list[str] | None, repeat: int) -> tuple[argparse.Namespace, int]:
+def options(
+    doc: str,
+    argv: list[str] | None,
+    repeat: int,
+    extra: Callable[[argparse.ArgumentParser], None] | None = None,
+) -> tuple[argparse.Namespace, int]:
     """The common options, parsed: ``--repeat N`` (best of N; default ``repeat``, 1 with
-    ``--quick``), ``--quick``, ``--json``. Returns the arguments and the repetitions."""
+    ``--quick``), ``--quick``, ``--json``, and what ``extra(parser)`` adds. Returns the arguments
+    and the repetitions."""
     p = argparse.ArgumentParser(description=doc.splitlines()[0])
+    if extra is not None:
+        extra(p)
     p.add_argument(
         "--repeat",
         "--repeats",
@@ -81,6 +89,7 @@ def compare(
     repeats: int,
     run_with_sink: Callable[[Ensemble, int], dict[str, Any]],
     after: Callable[[dict[str, Any]], None] | None = None,
+    cls: type[Ensemble] = Ensemble,
 ) -> dict[str, Any]:
     """Best-of-``repeats`` times of a plain run and of a run with the sink, alternating.
 
@@ -91,6 +100,8 @@ def compare(
         it, closes it, and returns what it measured; all of it is inside the timing.
     after : callable, optional
         Called with that dict after the timing (e.g. to delete the file written).
+    cls : type
+        The ensemble class (a subclass emulating a faster kernel, see recording_overhead.py).
 
     Returns
     -------
@@ -102,7 +113,7 @@ def compare(
     plain, plain_cpu, sink, sink_cpu, measured = [], [], [], [], []
     identical = True
     for rep in range(repeats):
-        ens = fresh(points)
+        ens = fresh(points, cls)
         wall, cpu = time.perf_counter(), time.process_time()
         ens.run(steps)
         plain.append(time.perf_counter() - wall)
@@ -110,7 +121,7 @@ def compare(
         reference = ens.state()
         del ens
 
-        ens = fresh(points)
+        ens = fresh(points, cls)
         wall, cpu = time.perf_counter(), time.process_time()
         info = run_with_sink(ens, rep)
         sink.append(time.perf_counter() - wall)

@@ -30,7 +30,13 @@ from pathlib import Path
 import numpy as np
 
 from warpratchet import Ensemble, MapParams, paper
-from warpratchet.recording import RecordingSink, check_new_file, require_rerun
+from warpratchet.recording import (
+    DEFAULT_MAX_BYTES,
+    RecordingSink,
+    check_new_file,
+    points_within_budget,
+    require_rerun,
+)
 
 from .command import command_name, run
 
@@ -115,21 +121,32 @@ def record_scene(
     seed: int = 0,
     color_by: str = "ftle",
     spawn: bool = False,
+    max_bytes: int = DEFAULT_MAX_BYTES,
 ) -> RecordingSink:
-    """Run ``scene`` from the strip B and record it to ``path``; returns the (closed) sink."""
+    """Run ``scene`` from the strip B and record it to ``path``; returns the (closed) sink.
+
+    Every frame draws the same subsample of the ensemble, as many points as let all frames fit
+    in ``max_bytes`` (:func:`warpratchet.recording.points_within_budget`).
+    """
     points = scene.points if points is None else points
     steps = scene.steps if steps is None else steps
     schedule = np.arange(steps + 1) if scene.trail else frame_steps(steps)
     ensemble = Ensemble.sample(scene.params, points, "strip", seed)
+    drawn = points_within_budget(len(schedule), points, points, max_bytes)
     sink = RecordingSink(
         path,
         spawn=spawn,
-        max_points=points,
+        max_points=drawn,
+        max_bytes=max_bytes,
+        steps=steps,
         color_by=color_by,
         seed=seed,
         trail=scene.trail,
         title=scene.title,
-        info={"scene": scene.name, "frames": f"{len(schedule)} (steps 0 to {steps})"},
+        info={
+            "scene": scene.name,
+            "frames": f"{len(schedule)} (steps 0 to {steps}), {drawn} of the {points} points each",
+        },
     )
     try:
         sink.log_frame(ensemble)  # step 0: the strip B
@@ -162,6 +179,12 @@ def build_parser(prog: str | None = None) -> argparse.ArgumentParser:
         "--color", choices=["ftle", "class"], default="ftle", help="colour by FTLE or by class"
     )
     parser.add_argument("--spawn", action="store_true", help="also stream each scene to a spawned viewer")
+    parser.add_argument(
+        "--max-mb",
+        type=float,
+        default=DEFAULT_MAX_BYTES / 1e6,
+        help="size budget of each recording in MB: fewer points per frame to stay below it (default 10)",
+    )
     return parser
 
 
@@ -181,6 +204,8 @@ def _record(args: argparse.Namespace) -> int:
             raise ValueError(f"{flag} = {value} is outside the allowed range >= 1")
     if args.seed < 0:
         raise ValueError(f"--seed = {args.seed} is outside the allowed range >= 0")
+    if not 0 < args.max_mb < 1e6:
+        raise ValueError(f"--max-mb = {args.max_mb} is outside the allowed range 0 < MB < 1e6")
     require_rerun()
     folder = Path(args.out_dir)
     folder.mkdir(parents=True, exist_ok=True)
@@ -195,6 +220,7 @@ def _record(args: argparse.Namespace) -> int:
             seed=args.seed,
             color_by=args.color,
             spawn=args.spawn,
+            max_bytes=int(args.max_mb * 1e6),
         )
         print(f"wrote {paths[name]}: {len(sink.frames)} frames in {time.perf_counter() - start:.1f} s")
     return 0

@@ -2,15 +2,20 @@
 
 The map (Eq. cpem) ``p' = p + K f(x), x' = x + p' mod 1`` with the piecewise-linear force of
 Eq. (fx). Start with :class:`MapParams`, :mod:`warpratchet.theory`, :class:`Ensemble` and
-:func:`summarize`; :class:`RunSpec` holds every setting of a run (docs/architecture.md).
+:meth:`Ensemble.summary`; :class:`RunSpec` holds every setting of a run (docs/architecture.md,
+docs/api.md).
+
+The names that need Warp or HDF5 (:class:`Ensemble`, :class:`Observer`, :func:`open_archive`)
+are imported on first use, so that ``warpratchet --help`` and ``--version`` answer at once and
+Ctrl-C during start-up has nothing to interrupt but this light import.
 """
 
+from importlib import import_module
 from importlib.metadata import PackageNotFoundError, version
+from typing import Any
 
 from . import theory
-from .archive import open_archive
-from .ensemble import Ensemble, Observer
-from .observables import acceleration, chaotic_mask, lyapunov, summarize
+from .observables import Summary, UnreliableWarning, acceleration, chaotic_mask, lyapunov, summarize
 from .params import MapParams
 from .spec import RunSpec
 
@@ -19,11 +24,16 @@ try:
 except PackageNotFoundError:  # pragma: no cover - running from a source tree
     __version__ = "0+unknown"
 
+#: Public names imported on first use: name -> module.
+_LAZY = {"Ensemble": ".ensemble", "Observer": ".runloop", "open_archive": ".archive"}
+
 __all__ = [
     "MapParams",
     "RunSpec",
     "Ensemble",
     "Observer",
+    "Summary",
+    "UnreliableWarning",
     "theory",
     "acceleration",
     "lyapunov",
@@ -32,3 +42,15 @@ __all__ = [
     "open_archive",
     "__version__",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        value = getattr(import_module(_LAZY[name], __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import math
 import os
-import time
 from collections.abc import Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
@@ -30,7 +29,9 @@ import warp as wp
 from . import kernels
 from .errors import check_choice, check_count
 from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
+from .observables import Summary, summarize
 from .params import MapParams
+from .runloop import Observer, archive_sink, run_chunks
 from .spec import MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS
 
 __all__ = [
@@ -118,22 +119,6 @@ def default_chunk_steps(points: int) -> int:
     progress bars move and a checkpoint is never far behind.
     """
     return int(min(100_000, max(16, 250_000_000 // max(points, 1))))
-
-
-class Observer:
-    """Receives the ensemble after each chunk of :meth:`Ensemble.run`.
-
-    Subclass and override what you need; archives, recordings and progress bars are observers.
-    """
-
-    def begin(self, ensemble: Ensemble, target_step: int) -> None:
-        """Called once before the first chunk; the run will stop at ``target_step``."""
-
-    def after_chunk(self, ensemble: Ensemble, seconds: float) -> None:
-        """Called after each chunk; ``seconds`` is the chunk's wall time."""
-
-    def end(self, ensemble: Ensemble) -> None:
-        """Called once after the last chunk (also when the run is interrupted)."""
 
 
 class Ensemble:
@@ -322,13 +307,23 @@ class Ensemble:
                 future.result()
         self.step += steps
 
+    #: Why the state cannot be trusted (set when an error stopped a chunk partway), else None.
+    undefined: str | None = None
+
     def run(
         self,
         steps: int,
         observers: Sequence[Observer] | Iterable[Observer] = (),
         chunk_steps: int | None = None,
+        *,
+        progress: bool = False,
+        archive: str | os.PathLike | None = None,
     ) -> Ensemble:
         """Advance every point by ``steps`` iterations, in chunks, calling observers after each.
+
+        Safe to interrupt: Ctrl-C (SIGINT) stops the run at the end of the chunk in flight, with
+        ``step`` matching the arrays and every observer's ``end`` called, then raises
+        ``KeyboardInterrupt`` (:mod:`warpratchet.runloop`).
 
         Parameters
         ----------
@@ -337,38 +332,62 @@ class Ensemble:
         observers : sequence of Observer
             Called with :meth:`Observer.after_chunk` after every chunk.
         chunk_steps : int, optional
-            Steps per chunk (default :func:`default_chunk_steps`); chunks end at global steps that
-            are multiples of it, and at the end of the run. The result does not depend on it.
+            Steps per chunk (default :func:`default_chunk_steps`, or the archive's); chunks end at
+            global steps that are multiples of it, and at the end of the run. The result does not
+            depend on it.
+        progress : bool
+            Draw a progress bar (``tqdm.auto``: a widget in Jupyter, text elsewhere).
+        archive : str or PathLike, optional
+            Stream the run into this HDF5 archive (:mod:`warpratchet.archive`) with its own
+            chunking: a new file, or one this ensemble was archived to before and is still at the
+            checkpoint of (then the run is appended). Closed when the run ends.
+
+        Raises
+        ------
+        ValueError
+            Bad ``steps``/``chunk_steps``, an archive that holds another run, or an ensemble whose
+            state is undefined after an error (:attr:`undefined`).
         """
+        if self.undefined is not None:
+            raise ValueError(f"this ensemble cannot be run: {self.undefined}; rebuild it")
         steps = check_count("steps", steps, 0)
+        observers = list(observers)
+        sink = None
+        if archive is not None:
+            sink = archive_sink(self, archive, chunk_steps)
+            observers.append(sink)
+            chunk_steps = sink.chunk_steps
+        if progress:
+            from .progress import ProgressBar
+
+            observers.insert(0, ProgressBar(notebook=True))
         if chunk_steps is None:
             chunk_steps = default_chunk_steps(self.points)
         # The kernel counts a launch's steps in a 32-bit int: a longer chunk would run fewer steps.
         chunk_steps = check_count("chunk_steps", chunk_steps, 1, MAX_CHUNK_STEPS)
-        observers = list(observers)
-        target = self.step + steps
-        # Compile (or load from cache) before any thread launches.
-        wp.load_module(kernels, device=self.device)
-        use_pool = wp.get_device(self.device).is_cpu and self.threads > 1 and self.points > 1
-        pool = ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet") if use_pool else None
-        for obs in observers:
-            obs.begin(self, target)
         try:
-            while self.step < target:
-                # Chunk ends sit at global multiples of chunk_steps, so a run resumed from any
-                # step reports (and archives) at the same steps as an uninterrupted one.
-                todo = min(chunk_steps - self.step % chunk_steps, target - self.step)
-                start = time.perf_counter()
-                self._advance(todo, pool)
-                seconds = time.perf_counter() - start
-                for obs in observers:
-                    obs.after_chunk(self, seconds)
+            # Compile (or load from cache) before any thread launches.
+            wp.load_module(kernels, device=self.device)
+            use_pool = wp.get_device(self.device).is_cpu and self.threads > 1 and self.points > 1
+            pool = ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet") if use_pool else None
+            run_chunks(self, self.step + steps, observers, chunk_steps, pool)
         finally:
-            if pool is not None:
-                pool.shutdown()
-            for obs in observers:
-                obs.end(self)
+            if sink is not None:
+                sink.close()
         return self
+
+    def summary(self, threshold: float | None = None) -> Summary:
+        """:func:`~warpratchet.observables.summarize` of the current state: A, FTLE, chaotic fraction.
+
+        Warns with :class:`~warpratchet.observables.UnreliableWarning` when the run is too short,
+        or has too few chaotic points, to estimate A (``Summary.reliable`` is False; ``reason``
+        says why).
+        """
+        if self.undefined is not None:
+            raise ValueError(f"this ensemble has no summary: {self.undefined}")
+        result = summarize({name: self.array(name) for name in STATE_FIELDS}, self.step, threshold)
+        result.warn()
+        return result
 
     def __repr__(self) -> str:
         p = self.params

@@ -7,7 +7,9 @@ work on archived checkpoints as well as on live ensembles).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -17,9 +19,25 @@ __all__ = [
     "default_lyapunov_threshold",
     "chaotic_mask",
     "mean_stderr",
+    "MIN_CHAOTIC_POINTS",
+    "AMBIGUITY_FACTOR",
+    "UnreliableWarning",
+    "reliability",
     "Summary",
     "summarize",
 ]
+
+#: Fewest chaotic points for which A is reported as an estimate. The standard error is itself
+#: estimated from the sample; its relative standard error is ``1/sqrt(2 (N - 1))`` (normal
+#: samples), which is 10% at N = 51: below that, "A +- stderr" does not say how uncertain A is.
+MIN_CHAOTIC_POINTS = 51
+#: Points whose FTLE lies within this factor of the threshold, on either side, are "ambiguous":
+#: their classification could go either way (tests/test_statistics.py uses the same band).
+AMBIGUITY_FACTOR = 3.0
+
+
+class UnreliableWarning(UserWarning):
+    """A summary whose A cannot be vouched for (too short a run, too few chaotic points)."""
 
 
 def acceleration(state: dict[str, np.ndarray], step: int) -> np.ndarray:
@@ -70,9 +88,44 @@ def chaotic_mask(ftle: np.ndarray, step: int, threshold: float | None = None) ->
     return ftle > threshold
 
 
+def reliability(chaotic_points: int, A_stderr: float, classification_bound: float = 0.0) -> tuple[bool, str]:
+    """Whether a mean A over ``chaotic_points`` points can be reported as an estimate, and why not.
+
+    The rule, from the standard errors:
+
+    1. at least :data:`MIN_CHAOTIC_POINTS` chaotic points, so that the standard error is known to
+       10% (below that A is noise, and NaN with none);
+    2. the classification bound (see :func:`summarize`) at most one standard error: how far A
+       could move if the points near the threshold were classified the other way. A run too
+       short for its threshold (the threshold ``10 (1 + ln n)/n`` is still near the chaotic
+       FTLEs, e.g. 0.85 at n = 60 against sigma ~ 0.3) puts most points in that band and fails
+       here; so does a threshold above the chaotic FTLEs.
+
+    Returns
+    -------
+    (reliable, reason) : (bool, str)
+        ``reason`` is ``""`` when reliable, else one sentence naming the numbers and what to do.
+    """
+    if chaotic_points < MIN_CHAOTIC_POINTS:
+        return False, (
+            f"only {chaotic_points} chaotic points (need {MIN_CHAOTIC_POINTS} for a standard error "
+            "known to 10%); run longer or with more points"
+        )
+    if not classification_bound <= A_stderr:  # also NaN
+        return False, (
+            f"the points near the chaos threshold could move A by up to {classification_bound:.2g}, "
+            f"more than its standard error {A_stderr:.2g}; run longer"
+        )
+    return True, ""
+
+
 @dataclass(frozen=True)
 class Summary:
-    """Ensemble summary after ``step`` iterations (all per-iteration quantities)."""
+    """Ensemble summary after ``step`` iterations (all per-iteration quantities).
+
+    ``reliable`` is False (and ``reason`` says why) when A cannot be vouched for: see
+    :func:`reliability`. Print A only together with that flag.
+    """
 
     step: int
     #: Mean of A_n over chaotic points (the paper's A, Fig. 7) and its standard error.
@@ -85,9 +138,32 @@ class Summary:
     chaotic_fraction: float
     chaotic_points: int
     threshold: float
+    #: Largest change of A if every ambiguous point were classified the other way (>= 0).
+    classification_bound: float = 0.0
+    reliable: bool = True
+    reason: str = ""
 
-    def as_dict(self) -> dict[str, float | int]:
+    def as_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    def warn(self, stacklevel: int = 3) -> None:
+        """Issue an :class:`UnreliableWarning` with :attr:`reason` if A is not reliable."""
+        if not self.reliable:
+            warnings.warn(f"A after {self.step} steps is unreliable: {self.reason}", UnreliableWarning,
+                          stacklevel=stacklevel)  # fmt: skip
+
+    def to_pandas(self) -> Any:
+        """This summary as a one-row ``pandas.DataFrame`` indexed by ``step``.
+
+        ``pandas.concat`` of several stacks them into a table. Needs pandas (not a dependency of
+        warpratchet: ``pip install pandas``).
+        """
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("Summary.to_pandas needs pandas: pip install pandas") from None
+        row = self.as_dict()
+        return pd.DataFrame([row]).set_index("step")
 
 
 def mean_stderr(values: np.ndarray) -> tuple[float, float]:
@@ -108,6 +184,15 @@ def summarize(state: dict[str, np.ndarray], step: int, threshold: float | None =
     The standard error is ``std / sqrt(N_chaotic)``: points are independent samples of the
     initial distribution, so it is the honest sampling error of the ensemble mean. Quantities
     over an empty chaotic set are NaN.
+
+    The classification bound: points with FTLE within a factor :data:`AMBIGUITY_FACTOR` of the
+    threshold could be classified either way (regular orbits sit at FTLE <~ 1e-4, chaotic ones at
+    sigma ~ 0.03-1; what lies between is a short run or an orbit sticking to an island). Moving
+    one such point ``i`` in or out of the chaotic set moves the mean by ``|A_i - A| / N`` with
+    ``N >= N_chaotic - N_ambiguous`` points left, so A could move by at most
+    ``sum_i |A_i - A| / (N_chaotic - N_ambiguous)``. :func:`reliability` compares it with the
+    standard error and sets ``reliable`` and ``reason``; no warning is issued here (sinks call
+    this after every chunk; :meth:`Ensemble.summary` warns).
     """
     if threshold is None:
         threshold = default_lyapunov_threshold(step)
@@ -116,8 +201,19 @@ def summarize(state: dict[str, np.ndarray], step: int, threshold: float | None =
         bad = int(np.count_nonzero(~np.isfinite(ftle)))
         raise FloatingPointError(f"{bad} tangent vectors overflowed; b1 or b2 is too small for float64")
     mask = ftle > threshold
-    a_mean, a_err = mean_stderr(acceleration(state, step)[mask])
+    acc = acceleration(state, step)
+    a_mean, a_err = mean_stderr(acc[mask])
     chaotic_ftle = ftle[mask]
+    chaotic_points = int(np.count_nonzero(mask))
+    ambiguous = (ftle > threshold / AMBIGUITY_FACTOR) & (ftle < threshold * AMBIGUITY_FACTOR)
+    n_ambiguous = int(np.count_nonzero(ambiguous))
+    if n_ambiguous == 0:
+        bound = 0.0
+    elif chaotic_points > n_ambiguous:
+        bound = float(np.abs(acc[ambiguous] - a_mean).sum()) / (chaotic_points - n_ambiguous)
+    else:
+        bound = math.inf
+    reliable, reason = reliability(chaotic_points, a_err, bound)
     return Summary(
         step=int(step),
         A=a_mean,
@@ -126,6 +222,9 @@ def summarize(state: dict[str, np.ndarray], step: int, threshold: float | None =
         lyapunov_std=float(chaotic_ftle.std(ddof=1)) if chaotic_ftle.size > 1 else math.nan,
         lyapunov_min=float(chaotic_ftle.min()) if chaotic_ftle.size else math.nan,
         chaotic_fraction=float(mask.mean()),
-        chaotic_points=int(mask.sum()),
+        chaotic_points=chaotic_points,
         threshold=float(threshold),
+        classification_bound=bound,
+        reliable=reliable,
+        reason=reason,
     )

@@ -6,8 +6,10 @@ end``) for :meth:`Ensemble.run <warpratchet.ensemble.Ensemble.run>` and anything
 :meth:`~ProgressBar.advance`, :meth:`~ProgressBar.close`) for sweeps, which count points.
 It lives below the CLI because the API draws it too (``run_sweep(progress=True)``).
 
-The bar is drawn only on a terminal (``disable=None`` in tqdm), so logs, pipes and ``--json``
-output stay clean; ``disable=True`` (``--quiet``) turns it off everywhere.
+The command line's bar is drawn only on a terminal (``disable=None`` in tqdm), so logs, pipes and
+``--json`` output stay clean; ``disable=True`` (``--quiet``) turns it off everywhere. The API's
+bar (``Ensemble.run(progress=True)``, ``notebook=True`` here) is ``tqdm.auto``'s: a widget in
+Jupyter (where stderr is no terminal, yet the user asked for a bar), text elsewhere.
 """
 
 from __future__ import annotations
@@ -29,19 +31,28 @@ class ProgressBar:
         Never draw (``--quiet``). Otherwise the bar is drawn only when stderr is a terminal.
     unit : str
         What one count is (``"step"``, ``"point"``).
+    notebook : bool
+        Asked for from the API: ``tqdm.auto`` (a Jupyter widget where one is available), drawn
+        whether or not stderr is a terminal.
     """
 
-    def __init__(self, description: str = "steps", disable: bool = False, unit: str = "step") -> None:
+    def __init__(
+        self, description: str = "steps", disable: bool = False, unit: str = "step", notebook: bool = False
+    ) -> None:
         self.description = description
         self.disable = disable
         self.unit = unit
+        self.notebook = notebook
         self._bar: Any = None
         self._first_step = 0
 
     # -- a counter ---------------------------------------------------------------------------------
     def open(self, total: int, initial: int = 0) -> None:
         """Start a bar at ``initial`` of ``total``."""
-        from tqdm import tqdm
+        if self.notebook:
+            from tqdm.auto import tqdm
+        else:
+            from tqdm import tqdm
 
         self._bar = tqdm(
             total=total,
@@ -51,7 +62,7 @@ class ProgressBar:
             unit_scale=True,
             file=sys.stderr,
             # None: tqdm draws only on a terminal, so logs and pipes stay clean.
-            disable=True if self.disable else None,
+            disable=True if self.disable else (False if self.notebook else None),
             dynamic_ncols=True,
         )
 

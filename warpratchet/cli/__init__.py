@@ -1,27 +1,39 @@
 """The ``warpratchet`` command.
 
 One module per subcommand (:mod:`.theory`, :mod:`.run`, :mod:`.resume`, :mod:`.inspect`,
-:mod:`.sweep`, :mod:`.sumrule`), each with ``add(subparsers)`` declaring its flags and
-``command(args)`` running it; :mod:`.common` holds what they share (the one-line error, JSON
-output, flags built from :class:`~warpratchet.spec.RunSpec`), :mod:`.sinks` the output options of
-``run``. Bad input (argparse errors, ``ValueError`` from the API, unreadable files) prints one
-line on stderr and exits with status 2, never a traceback; Ctrl-C exits with 130.
+:mod:`.sweep`, :mod:`.sumrule`, :mod:`.figures`), each with ``add(subparsers)`` declaring its
+flags and ``command(args)`` running it; :mod:`.common` holds what they share (the one-line error,
+JSON output, flags built from :class:`~warpratchet.spec.RunSpec`), :mod:`.sinks` the output
+options of ``run``. Bad input (argparse errors, ``ValueError`` from the API, unreadable files)
+prints one line on stderr and exits with status 2, never a traceback; Ctrl-C prints one line and
+exits with 130 (128 + SIGINT).
 
-A new subcommand is a new module with ``add`` and ``command``, listed in :data:`SUBCOMMANDS`.
+A new subcommand is a new module with ``add`` and ``command``, listed in :data:`SUBCOMMANDS`,
+with its examples in :data:`EXAMPLES`.
 """
 
 from __future__ import annotations
 
+import argparse
 import sys
 from collections.abc import Sequence
 
-from . import inspect, resume, run, sumrule, sweep, theory
-from .common import Parser, ProgressBar, UsageError, emit_json, nonnegative_int, positive_int
+from . import figures, inspect, resume, run, sumrule, sweep, theory
+from .common import (
+    Interrupted,
+    Parser,
+    ProgressBar,
+    UsageError,
+    emit_json,
+    nonnegative_int,
+    positive_int,
+)
 
 __all__ = [
     "main",
     "build_parser",
     "UsageError",
+    "Interrupted",
     "ProgressBar",
     "emit_json",
     "positive_int",
@@ -36,28 +48,95 @@ SUBCOMMANDS = {
     "inspect": inspect,
     "sweep": sweep,
     "sumrule": sumrule,
+    "figures": figures,
 }
+
+DESCRIPTION = """\
+Ensembles of the weak-chaos ratchet accelerator of Dana & Roitberg: the kicked rotor
+p' = p + K f(x), x' = x + p' (mod 1) with the piecewise-linear force of strip widths b1, b2.
+Computes the ratchet acceleration A with its standard error next to the paper's closed forms,
+Lyapunov exponents, island censuses and parameter sweeps; archives runs (resumable bit for bit)
+and records them for the rerun viewer."""
+
+#: Examples shown at the end of each subcommand's ``--help`` (and the top-level one).
+EXAMPLES = {
+    "warpratchet": [
+        "warpratchet theory --K 3 --b1 0.1 --b2 0.01",
+        "warpratchet run --K 3 --b1 0.1 --b2 0.01 --points 10000 --steps 120000",
+        "warpratchet run --K 3 --b1 0.1 --b2 0.01 --out run.h5 && warpratchet inspect run.h5",
+        "warpratchet sweep --path maximal --b2 0.005:0.165:33 --out fig7.h5",
+        "warpratchet COMMAND --help      (the options of one command)",
+    ],
+    "theory": ["warpratchet theory --K 3 --b1 0.1 --b2 0.01 --json"],
+    "run": [
+        "warpratchet run --K 3 --b1 0.1 --b2 0.01 --points 10000 --steps 120000",
+        "warpratchet run --K 3 --b1 0.1 --b2 0.01 --json --quiet",
+        "warpratchet run --K 3 --b1 0.1 --b2 0.01 --out run.h5 --snapshot-every 10000",
+        "warpratchet run --K 3 --b1 0.1 --b2 0.01 --steps 20000 --rerun run.rrd   (then: rerun run.rrd)",
+    ],
+    "resume": ["warpratchet resume run.h5 --steps 2000000"],
+    "inspect": ["warpratchet inspect run.h5", "warpratchet inspect run.h5 --json"],
+    "sweep": [
+        "warpratchet sweep --path maximal --K 3 --b2 0.005:0.165:33 --out fig7.h5",
+        "warpratchet sweep --grid b1=0.001:0.5:50,b2=0.001:0.5:50 --domain LR --out grid.h5",
+        "warpratchet sweep --path k --Ks 2.5:3.5:11 --b1 0.1 --b2 0.01 --json",
+    ],
+    "sumrule": [
+        "warpratchet sumrule --K 2.99 --b1 0.25 --b2 0.05 --points 100000 --steps 30000",
+        "warpratchet sumrule --K 3 --b1 0.1 --b2 0.01 --grid 300 --classifier megno --json",
+    ],
+}
+
+
+def _epilog(name: str) -> str:
+    return "examples:\n" + "\n".join(f"  {line}" for line in EXAMPLES[name])
 
 
 def build_parser() -> Parser:
     """The ``warpratchet`` argument parser with every subcommand."""
-    parser = Parser(prog="warpratchet", description=__doc__.splitlines()[0])
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
-    for module in SUBCOMMANDS.values():
+    from .. import __version__
+
+    parser = Parser(
+        prog="warpratchet",
+        description=DESCRIPTION,
+        epilog=_epilog("warpratchet"),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Parser, metavar="COMMAND")
+    for name, module in SUBCOMMANDS.items():
         module.add(sub)
+        p = sub.choices[name]
+        # Each subcommand's help opens with its module's summary and ends with examples.
+        if p.description is None:
+            p.description = module.__doc__.split("\n\n")[0].replace("\n", " ")
+        if name in EXAMPLES:
+            p.epilog = _epilog(name)
+            p.formatter_class = argparse.RawDescriptionHelpFormatter
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (2 for bad input, 130 on Ctrl-C)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
     try:
-        args = build_parser().parse_args(argv)
+        if argv[:1] == ["figures"]:  # its options are warpratchet_viz's: passed through unparsed
+            return figures.main(argv[1:])
+        parser = build_parser()
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help, --version (0); parse errors raise UsageError instead
+            return exc.code if isinstance(exc.code, int) else 0
         return SUBCOMMANDS[args.command].command(args)
-    except (UsageError, ValueError, OSError) as exc:
+    except UsageError as exc:
+        print(f"{exc.prog}: error: {exc}{exc.hint}", file=sys.stderr)
+        return 2
+    except (ValueError, OSError) as exc:
         print(f"warpratchet: error: {exc}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("warpratchet: interrupted", file=sys.stderr)
+    except KeyboardInterrupt as exc:
+        detail = str(exc) if isinstance(exc, Interrupted) else ""
+        print(f"warpratchet: interrupted{' ' + detail if detail else ''}", file=sys.stderr)
         return 130
 
 

@@ -23,6 +23,7 @@ from ..spec import RunSpec, setting_of
 
 __all__ = [
     "UsageError",
+    "Interrupted",
     "Parser",
     "ProgressBar",
     "emit_json",
@@ -40,14 +41,36 @@ _FROM_SPEC = object()  # "take it from the RunSpec field"
 
 
 class UsageError(Exception):
-    """Bad input from the user: reported in one line, exit status 2."""
+    """Bad input from the user: reported in one line ``<prog>: error: <message>``, exit status 2.
+
+    ``prog`` is the command that refused it (``warpratchet`` or, for argparse's errors, the
+    subcommand, as argparse names it); ``hint`` follows the message (argparse's errors point to
+    ``--help``, where the usage is).
+    """
+
+    def __init__(self, message: str, prog: str = "warpratchet", hint: str = "") -> None:
+        super().__init__(message)
+        self.prog = prog
+        self.hint = hint
+
+
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C, with where it stopped, what was kept and how to go on.
+
+    The CLI prints ``warpratchet: interrupted <message>``, e.g. ``... interrupted at step 2000 of
+    120000``.
+    """
 
 
 class Parser(argparse.ArgumentParser):
-    """An ArgumentParser whose errors are one line (:class:`UsageError`), not usage + error."""
+    """An ArgumentParser whose errors are one line, argparse's ``<prog>: error: <message>``.
+
+    The usage is not printed (bad input is one line on stderr): the line ends with where to
+    find it, ``see '<prog> --help'``.
+    """
 
     def error(self, message: str) -> NoReturn:
-        raise UsageError(f"{self.prog}: {message}")
+        raise UsageError(message, prog=self.prog, hint=f" (see '{self.prog} --help')")
 
 
 def _clean(value: Any) -> Any:

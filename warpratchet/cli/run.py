@@ -10,11 +10,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import time
 from typing import Any
 
 from ..spec import RunSpec
-from .common import ProgressBar, emit_json, spec_flags, spec_from_args
+from .common import Interrupted, ProgressBar, emit_json, spec_flags, spec_from_args
 from .sinks import add_archive_flags, add_rerun_flags, archive_plan, rerun_sink
 
 #: The RunSpec settings ``run`` takes as flags: all but the classifier (``run`` reports the FTLE's
@@ -38,6 +39,8 @@ def run_report(ensemble, seconds: float, steps_run: int, threshold: float | None
 
     summary = summarize(ensemble.state(), ensemble.step, threshold).as_dict()
     del summary["step"]  # the report's "steps" is the ensemble's step
+    # A, A_stderr, lyapunov (+ _std, _min), chaotic_fraction, chaotic_points, threshold, and
+    # whether A can be trusted: reliable, reason, classification_bound (observables.reliability)
     p = ensemble.params
     return {
         "K": p.K,
@@ -49,14 +52,19 @@ def run_report(ensemble, seconds: float, steps_run: int, threshold: float | None
         "init": ensemble.sampler,
         "threads": ensemble.threads,
         "A_theory": theory.summary(p)["A"],
-        **summary,  # A, A_stderr, lyapunov (+ _std, _min), chaotic_fraction, chaotic_points, threshold
+        **summary,
         "seconds": seconds,
         "point_steps_per_second": ensemble.points * steps_run / seconds if seconds > 0 else None,
     }
 
 
+def _number(value: float, spec: str) -> str:
+    """``value`` formatted, or ``n/a`` for NaN (no chaotic point: nothing to average)."""
+    return "n/a" if value is None or math.isnan(value) else format(value, spec)
+
+
 def print_report(report: dict[str, Any], as_json: bool) -> None:
-    """:func:`run_report` as one JSON object, or as four lines for a human."""
+    """:func:`run_report` as one JSON object, or as four lines for a human (five if A is unreliable)."""
     if as_json:
         emit_json(report)
         return
@@ -66,12 +74,14 @@ def print_report(report: dict[str, Any], as_json: bool) -> None:
         f"{report['points']} points x {report['steps']} steps ({report['init']}, seed {report['seed']})"
     )
     print(
-        f"  A           = {report['A']:.6g} +- {report['A_stderr']:.2g}"
+        f"  A           = {_number(report['A'], '.6g')} +- {_number(report['A_stderr'], '.2g')}"
         + ("" if a_theory is None else f"   (theory {a_theory:.6g})")
     )
+    if not report["reliable"]:
+        print(f"  UNRELIABLE  : {report['reason']}")
     print(
-        f"  lyapunov    = {report['lyapunov']:.6g} (min {report['lyapunov_min']:.4g}) over "
-        f"{report['chaotic_fraction']:.4f} of the points"
+        f"  lyapunov    = {_number(report['lyapunov'], '.6g')} (min {_number(report['lyapunov_min'], '.4g')})"
+        f" over {report['chaotic_fraction']:.4f} of the points"
     )
     if report["point_steps_per_second"]:
         print(f"  {report['seconds']:.2f} s, {report['point_steps_per_second'] / 1e6:.0f} M point-steps/s")
@@ -96,11 +106,19 @@ def command(args: argparse.Namespace) -> int:
         observers.append(sink)
         chunk_steps = sink.chunk_steps
     if recorder is not None:
-        observers.append(recorder)
-        chunk_steps = chunk_steps or recorder.every  # frames at exact multiples of --rerun-every
+        observers.append(recorder)  # its frames end chunks themselves (Observer.next_stop)
     start = time.perf_counter()
     try:
         ensemble.run(spec.steps, observers, chunk_steps=chunk_steps)
+    except KeyboardInterrupt:
+        # Ensemble.run stops between chunks, so the step is exact (and the sinks are closed).
+        detail = f"at step {ensemble.step} of {spec.steps}"
+        if sink is not None:
+            detail += (
+                f"; {args.out} holds the run up to its checkpoint at step {sink.checkpoint_step}: "
+                f"warpratchet resume {args.out} --steps {spec.steps} continues it"
+            )
+        raise Interrupted(detail) from None
     finally:
         if sink is not None:
             sink.close()

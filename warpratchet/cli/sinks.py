@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 from typing import Any
 
 from ..spec import RunSpec
@@ -78,16 +79,25 @@ def add_rerun_flags(p: argparse.ArgumentParser) -> None:
         "--rerun",
         metavar="PATH",
         default=None,
-        help="write a rerun recording (.rrd, must not exist) of the phase-space cloud while running",
+        help="write a rerun recording (.rrd, must not exist) of the phase-space cloud while running; "
+        "frames are log-spaced in the step (dense early), within --rerun-max-mb and within 5%% of "
+        "the run time",
     )
     p.add_argument(
         "--rerun-spawn",
         action="store_true",
-        help="stream the recording to a newly spawned rerun viewer (needs a display)",
+        help="stream the recording to a newly spawned rerun viewer (needs a display; without one: "
+        "a warning, and the run goes on)",
     )
-    _count_flag(p, "--rerun-points", 1, None, "points drawn per frame, a fixed subsample (default 100000)")
-    every = "steps between frames (default: recording costs < 5%% of the run, at most 100 frames)"
-    _count_flag(p, "--rerun-every", 1, None, every)
+    _count_flag(p, "--rerun-points", 1, None, "points drawn per frame, a fixed subsample (default 20000)")
+    _count_flag(p, "--rerun-every", 1, None, "frames every STEPS steps instead of log-spaced frames")
+    p.add_argument(
+        "--rerun-max-mb",
+        type=_positive_megabytes,
+        default=None,
+        metavar="MB",
+        help="size budget of the recording: fewer points and frames to stay below it (default 10)",
+    )
     p.add_argument(
         "--rerun-color",
         choices=["ftle", "class"],
@@ -96,27 +106,51 @@ def add_rerun_flags(p: argparse.ArgumentParser) -> None:
     )
 
 
-def rerun_sink(args: argparse.Namespace, spec: RunSpec):
-    """The RecordingSink of ``run --rerun/--rerun-spawn`` (None without them); checks flags up front."""
-    if args.rerun is None and not args.rerun_spawn:
-        _first_given(
-            [
-                ("--rerun-points", args.rerun_points is not None),
-                ("--rerun-every", args.rerun_every is not None),
-                ("--rerun-color", args.rerun_color is not None),
-            ],
-            "--rerun PATH or --rerun-spawn",
-        )
-        return None
-    from ..recording import DEFAULT_MAX_POINTS, RecordingSink, frame_every
+def _positive_megabytes(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"invalid float value: {text!r}") from None
+    if not (value > 0 and value < 1e6):
+        raise argparse.ArgumentTypeError(f"rerun_max_mb = {value} is outside the allowed range 0 < MB < 1e6")
+    return value
 
-    max_points = args.rerun_points or DEFAULT_MAX_POINTS
+
+def rerun_sink(args: argparse.Namespace, spec: RunSpec):
+    """The RecordingSink of ``run --rerun/--rerun-spawn`` (None without them); checks flags up front.
+
+    ``--rerun-spawn`` without a display is a one-line warning on stderr, and the run goes on
+    (recording to ``--rerun PATH`` if given).
+    """
+    given = [
+        ("--rerun-points", args.rerun_points is not None),
+        ("--rerun-every", args.rerun_every is not None),
+        ("--rerun-max-mb", args.rerun_max_mb is not None),
+        ("--rerun-color", args.rerun_color is not None),
+    ]
+    if args.rerun is None and not args.rerun_spawn:
+        _first_given(given, "--rerun PATH or --rerun-spawn")
+        return None
+    from ..recording import DEFAULT_MAX_BYTES, DEFAULT_MAX_POINTS, RecordingSink, display_available
+
+    spawn = args.rerun_spawn
+    if spawn and not display_available():
+        what = f"recording to {args.rerun} only" if args.rerun else "not recording"
+        print(
+            f"warpratchet: warning: --rerun-spawn needs a display (DISPLAY and WAYLAND_DISPLAY are not set); "
+            f"{what}, the run goes on",
+            file=sys.stderr,
+        )
+        if args.rerun is None:
+            return None
+        spawn = False
     try:
         return RecordingSink(
             args.rerun,
-            spawn=args.rerun_spawn,
-            max_points=max_points,
-            every=args.rerun_every or frame_every(spec.points, spec.steps, max_points),
+            spawn=spawn,
+            max_points=args.rerun_points or DEFAULT_MAX_POINTS,
+            every=args.rerun_every,
+            max_bytes=int(args.rerun_max_mb * 1e6) if args.rerun_max_mb else DEFAULT_MAX_BYTES,
             color_by=args.rerun_color or "ftle",
             threshold=spec.threshold,
         )

@@ -8,6 +8,7 @@ indicator (``--classifier``).
 from __future__ import annotations
 
 import argparse
+import math
 
 from .common import ProgressBar, count_type, emit_json, spec_flag, spec_flags
 
@@ -65,7 +66,8 @@ def _print_census(result, out: dict) -> None:
     for key in ("A_sumrule", "A_direct", "A_force", "torus_mean_A"):
         spread = out.get(f"{key}_stderr")
         label = err if key == "A_sumrule" else "+-"  # means over points always carry a standard error
-        print(f"  {key:<12} = {out[key]:.6g}" + ("" if spread is None else f" {label} {spread:.2g}"))
+        value = "n/a (no points to average)" if out[key] is None else f"{out[key]:.6g}"
+        print(f"  {key:<12} = {value}" + ("" if spread is None else f" {label} {spread:.2g}"))
     if result.theory is not None:
         t = result.theory
         print(
@@ -95,7 +97,8 @@ def command(args: argparse.Namespace) -> int:
         device=args.device,
         observers=[ProgressBar(disable=args.quiet)],
     )
-    out = result.as_dict()
+    # NaN (a mean over no points) is null in JSON and "n/a" in text, never printed as a number.
+    out = {k: None if isinstance(v, float) and math.isnan(v) else v for k, v in result.as_dict().items()}
     if args.json:
         emit_json(out)
     else:

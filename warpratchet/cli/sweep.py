@@ -12,7 +12,8 @@ import argparse
 import math
 
 from ..errors import ParameterError, check_count
-from .common import UsageError, emit_json, spec_flag, spec_flags, spec_from_args
+from ..observables import MIN_CHAOTIC_POINTS
+from .common import Interrupted, UsageError, emit_json, spec_flag, spec_flags, spec_from_args
 
 #: What each kind of sweep reads besides --K: the flags it needs (any other is an error).
 _SWEEP_NEEDS = {
@@ -156,20 +157,36 @@ def _sweep_points(args: argparse.Namespace) -> list:
     return points
 
 
+def _cell(value: float, width: int, spec: str) -> str:
+    return f"{'n/a' if math.isnan(value) else format(value, spec):>{width}}"
+
+
 def _print_rows(rows: list[dict], computed: int, out: str | None) -> None:
+    """The table of a sweep; a row with too few chaotic points for A is marked ``*`` and explained.
+
+    Sweep files keep the chaotic-point count but not the classification bound of
+    :func:`warpratchet.observables.reliability`, so only its first rule is checked here.
+    """
     print(
         f"{'K':>6} {'b1':>10} {'b2':>10} {'domain':>6} {'A':>11} {'+-':>8} {'A_theory':>11} "
         f"{'lyapunov':>9} {'chaotic':>7} {'seconds':>8}"
     )
+    few = 0
     for r in rows:
-        a_theory = "n/a" if math.isnan(r["A_theory"]) else f"{r['A_theory']:.5g}"
+        mark = " *" if r["chaotic_points"] < MIN_CHAOTIC_POINTS else ""
+        few += bool(mark)
         print(
-            f"{r['K']:>6.4g} {r['b1']:>10.4g} {r['b2']:>10.4g} {r['domain']:>6} {r['A']:>11.5g} "
-            f"{r['A_stderr']:>8.2g} {a_theory:>11} {r['lyapunov']:>9.4g} {r['chaotic_fraction']:>7.4f} "
-            f"{r['seconds']:>8.2f}"
+            f"{r['K']:>6.4g} {r['b1']:>10.4g} {r['b2']:>10.4g} {r['domain']:>6} {_cell(r['A'], 11, '.5g')} "
+            f"{_cell(r['A_stderr'], 8, '.2g')} {_cell(r['A_theory'], 11, '.5g')} "
+            f"{_cell(r['lyapunov'], 9, '.4g')} {r['chaotic_fraction']:>7.4f} {r['seconds']:>8.2f}{mark}"
         )
     source = f", {len(rows) - computed} read from {out}" if out is not None else ""
     print(f"{len(rows)} points: {computed} computed{source}")
+    if few:
+        print(
+            f"* {few} points have fewer than {MIN_CHAOTIC_POINTS} chaotic points: their A is not an "
+            "estimate (UNRELIABLE); run longer or with more points"
+        )
 
 
 def command(args: argparse.Namespace) -> int:
@@ -191,6 +208,13 @@ def command(args: argparse.Namespace) -> int:
         )
     except ImportError as exc:
         raise UsageError(str(exc)) from None
+    except KeyboardInterrupt:
+        kept = (
+            f"{args.out} keeps them: the same command computes only the missing points"
+            if args.out is not None
+            else "nothing was saved (no --out)"
+        )
+        raise Interrupted(f"after {len(computed)} of {len(points)} points; {kept}") from None
     if args.json:
         emit_json({"rows": rows})
     else:

@@ -4,12 +4,24 @@ One idea per module:
 
 * :mod:`.scene`: what a recording shows (entity paths, colours, classes, the default blueprint);
 * :mod:`.stream`: :class:`PhaseSpaceRecording`, one recording written to a file or a viewer;
+* :mod:`.plan`: which steps get a frame and how many points it draws (size and time budgets);
 * :mod:`.sink`: :class:`RecordingSink`, the observer that records a run as it goes.
 
 rerun-sdk is an optional dependency (``pip install 'warpratchet[rerun]'``), imported only when a
 recording is opened. Replays of an archive's snapshots live in ``viz/record.py``.
 """
 
+from .plan import (
+    DEFAULT_MAX_BYTES,
+    DEFAULT_MAX_FRAMES,
+    DEFAULT_MAX_POINTS,
+    Plan,
+    frame_every,
+    log_spaced,
+    plan_frames,
+    points_within_budget,
+    probe_throughput,
+)
 from .scene import (
     CLASSES,
     CLOUD_PATH,
@@ -23,8 +35,8 @@ from .scene import (
     require_rerun,
     torus_positions,
 )
-from .sink import DEFAULT_MAX_FRAMES, DEFAULT_MAX_POINTS, RecordingSink, frame_every
-from .stream import PhaseSpaceRecording, check_new_file
+from .sink import RecordingSink
+from .stream import PhaseSpaceRecording, ViewerUnavailable, check_new_file, display_available
 
 __all__ = [
     "RERUN_MISSING",
@@ -40,8 +52,16 @@ __all__ = [
     "CLOUD_PATH",
     "DEFAULT_MAX_POINTS",
     "DEFAULT_MAX_FRAMES",
+    "DEFAULT_MAX_BYTES",
+    "Plan",
     "frame_every",
+    "log_spaced",
+    "plan_frames",
+    "points_within_budget",
+    "probe_throughput",
     "check_new_file",
+    "display_available",
+    "ViewerUnavailable",
     "PhaseSpaceRecording",
     "RecordingSink",
 ]

@@ -11,6 +11,7 @@ Layout of a recording (entity paths)::
 
     phase_space                   static Transform3D: flips the 2-D view so that p points up
     phase_space/cloud             Points2D, positions (x, p mod 1) in [0, 1)^2, one row per frame
+    phase_space/axes              static: the unit square, ticks at 0, 0.5, 1 and the labels x, p mod 1
     series/A/numerics             mean A_n over chaotic points (Eq. An)
     series/A/theory               the paper's A, where it has one
     series/A_stderr               its standard error
@@ -47,6 +48,8 @@ __all__ = [
     "CLOUD_PATH",
     "PHASE_SPACE_PATH",
     "PARAMETERS_PATH",
+    "AXES_PATH",
+    "PLAYBACK_SECONDS",
     "ftle_colors",
     "class_ids",
     "torus_positions",
@@ -118,6 +121,9 @@ SERIES_NAMES: dict[str, str] = {
 }
 PHASE_SPACE_PATH = "phase_space"
 PARAMETERS_PATH = "parameters"
+AXES_PATH = "phase_space/axes"
+#: Pressing play in the viewer runs through the whole recording in about this many seconds.
+PLAYBACK_SECONDS = 60.0
 
 
 def require_rerun() -> Any:
@@ -211,11 +217,54 @@ def markdown_parameters(params: MapParams, extra: Mapping[str, object]) -> str:
 
 
 # -- the default view ------------------------------------------------------------------------------
-def blueprint(trail: bool = False) -> Any:
+def axes(rr: Any) -> list[tuple[str, Any]]:
+    """Static ``(entity path, archetype)`` pairs drawing the axes of the phase-space panel.
+
+    In the torus's own coordinates (``x`` right, ``p mod 1`` up; the panel's transform flips
+    rerun's downward y): the unit square, ticks and labels at 0, 0.5 and 1 on both axes, and
+    the axis names below and left of it.
+    """
+    grey = [120, 120, 120]
+    ticks = [[[v, 0.0], [v, -0.02]] for v in (0.0, 0.5, 1.0)] + [
+        [[0.0, v], [-0.02, v]] for v in (0.0, 0.5, 1.0)
+    ]
+    label_at = [[v, -0.05] for v in (0.0, 0.5, 1.0)] + [[-0.06, v] for v in (0.0, 0.5, 1.0)]
+    labels = ["0", "0.5", "1"] * 2
+    return [
+        (f"{AXES_PATH}/square", rr.LineStrips2D([[[0, 0], [1, 0], [1, 1], [0, 1], [0, 0]]], colors=grey)),
+        (f"{AXES_PATH}/ticks", rr.LineStrips2D(ticks, colors=grey)),
+        (
+            f"{AXES_PATH}/labels",
+            rr.Points2D(
+                label_at + [[0.5, -0.1], [-0.12, 0.5]],
+                labels=labels + ["x", "p mod 1"],
+                radii=0.0,
+                colors=grey,
+                show_labels=True,
+            ),
+        ),
+    ]
+
+
+def blueprint(trail: bool = False, steps: int | None = None) -> Any:
     """The default view: the torus on the left, the series and the parameters on the right.
 
-    ``trail``: the phase-space view shows every frame up to the time cursor (the union of the
-    iterates, as in Fig. 2) instead of the current frame only.
+    * The time cursor starts at the first step, paused. rerun 0.41's time-panel blueprint has
+      no cursor position; a paused panel starts at the *end* while the viewer is "following",
+      and any loop mode turns following off, so the panel is paused with ``loop_mode="all"``:
+      the cursor then starts at the beginning of the timeline (re_viewer_context,
+      ``TimeControl::update``). Play runs the whole recording in :data:`PLAYBACK_SECONDS`.
+    * The time-series panels show the whole run, whatever the cursor: their visible range and
+      their x axis are the whole ``step`` timeline.
+    * ``trail``: the phase-space view shows every frame up to the time cursor (the union of the
+      iterates, as in Fig. 2) instead of the current frame only.
+
+    Parameters
+    ----------
+    trail : bool
+        See above.
+    steps : int, optional
+        Length of the run in steps (sets the playback speed; default: 100 steps per second).
     """
     rr = require_rerun()
     import rerun.blueprint as rrb
@@ -229,14 +278,30 @@ def blueprint(trail: bool = False) -> Any:
         name="phase space (x, p mod 1)",
         origin="/",
         contents="phase_space/**",
-        visual_bounds=rrb.VisualBounds2D(x_range=[0.0, 1.0], y_range=[0.0, 1.0]),
+        # View coordinates put y downwards: p in [-0.14, 1.04] is y in [-0.04, 1.14].
+        visual_bounds=rrb.VisualBounds2D(x_range=[-0.16, 1.04], y_range=[-0.04, 1.14]),
         time_ranges=time_ranges,
     )
-    series = rrb.Vertical(
-        rrb.TimeSeriesView(name="A_n (Eq. An) and theory", origin="series/A"),
-        rrb.TimeSeriesView(name="standard error of A_n", origin="series/A_stderr"),
-        rrb.TimeSeriesView(name="FTLE of chaotic points", origin="series/lyapunov"),
-        rrb.TimeSeriesView(name="chaotic fraction", origin="series/chaotic_fraction"),
+    everything = rr.TimeRange(start=rr.TimeRangeBoundary.infinite(), end=rr.TimeRangeBoundary.infinite())
+
+    def series(name: str, origin: str) -> Any:
+        return rrb.TimeSeriesView(
+            name=name,
+            origin=origin,
+            time_ranges=rr.VisibleTimeRange("step", range=everything),
+            axis_x=rrb.TimeAxis(view_range=everything),
+        )
+
+    panels = rrb.Vertical(
+        series("A_n (Eq. An) and theory", "series/A"),
+        series("standard error of A_n", "series/A_stderr"),
+        series("FTLE of chaotic points", "series/lyapunov"),
+        series("chaotic fraction", "series/chaotic_fraction"),
         rrb.TextDocumentView(name="parameters", origin="parameters"),
     )
-    return rrb.Blueprint(rrb.Horizontal(phase_space, series, column_shares=[3, 2]), collapse_panels=True)
+    fps = 100.0 if not steps else max(1.0, steps / PLAYBACK_SECONDS)
+    return rrb.Blueprint(
+        rrb.Horizontal(phase_space, panels, column_shares=[3, 2]),
+        rrb.TimePanel(timeline="step", play_state="paused", loop_mode="all", fps=fps),
+        collapse_panels=True,
+    )

@@ -1,14 +1,17 @@
 """Recording a run as it goes: :class:`RecordingSink`, an observer of :meth:`Ensemble.run`.
 
-The sink draws a fixed random subsample of the ensemble every ``every`` steps (default
-:func:`frame_every`, from a cost model measured by ``benchmarks/recording_overhead.py``) into a
+The sink draws a fixed random subsample of the ensemble at the frames of a :class:`~.plan.Plan`
+(log-spaced steps within a size and a time budget, :mod:`.plan`) into a
 :class:`~warpratchet.recording.stream.PhaseSpaceRecording`, with the ensemble summary of
-:func:`~warpratchet.observables.summarize`. Recording never changes the run's results.
+:func:`~warpratchet.observables.summarize`; between frames it adds summary rows to the time
+series when they cost under 2% of the kernel time since the last one. It asks the run loop to
+stop at its frames (``next_stop``), so frames land on their steps whatever the chunking.
+Recording never changes the run's results.
 """
 
 from __future__ import annotations
 
-import math
+import bisect
 import time
 from pathlib import Path
 from typing import Any, Literal
@@ -18,78 +21,35 @@ import numpy as np
 from ..ensemble import STATE_FIELDS, Ensemble, Observer
 from ..errors import check_choice, check_count, check_optional
 from ..observables import Summary, acceleration, default_lyapunov_threshold, lyapunov, summarize
+from .plan import (
+    DEFAULT_MAX_BYTES,
+    DEFAULT_MAX_FRAMES,
+    DEFAULT_MAX_POINTS,
+    Plan,
+    frame_every,
+    frame_seconds,
+    plan_frames,
+    probe_throughput,
+)
 from .scene import COLOR_BY, require_rerun
 from .stream import PhaseSpaceRecording, check_new_file
 
-__all__ = ["DEFAULT_MAX_POINTS", "DEFAULT_MAX_FRAMES", "frame_every", "RecordingSink"]
+__all__ = ["DEFAULT_MAX_POINTS", "DEFAULT_MAX_FRAMES", "DEFAULT_MAX_BYTES", "frame_every", "RecordingSink"]
 
-#: Default subsample size: ~1.2 MB per frame (float32 positions, RGBA colours), dense enough to
-#: show the islands as holes in a view of ~10^3 pixels across.
-DEFAULT_MAX_POINTS = 100_000
-#: Default cap on the number of frames of a run (keeps a default recording below ~150 MB).
-DEFAULT_MAX_FRAMES = 100
-
-# Cost model of one frame, measured with benchmarks/recording_overhead.py on the 2-core CPU:
-# ~2 ms fixed, ~45 ns per recorded point (gather, FTLE, colours, serialisation) and ~35 ns per
-# ensemble point (the full-ensemble summary). At ~9e8 point-steps/s, keeping a frame below 5% of the
-# run time between frames (half the 10% budget, for noise and file writing) needs an interval
-# of at least 20 x 9e8 x cost point-steps.
-_NS_PER_RECORDED_POINT = 45.0
-_NS_PER_ENSEMBLE_POINT = 35.0
-_FRAME_FIXED_SECONDS = 2.0e-3
-_POINT_STEPS_PER_SECOND = 9.0e8
-_OVERHEAD_BUDGET = 0.05
-
-
-def frame_every(
-    points: int,
-    steps: int,
-    max_points: int = DEFAULT_MAX_POINTS,
-    max_frames: int = DEFAULT_MAX_FRAMES,
-) -> int:
-    """Default steps between frames of a live recording.
-
-    The larger of (i) the interval after which one frame (``min(points, max_points)`` recorded
-    points plus a summary of all ``points``) costs at most 5% of the CPU run time, from the cost
-    model measured by ``benchmarks/recording_overhead.py``, and (ii) ``steps / max_frames``.
-    On a GPU the run is faster and the same interval costs relatively more: pass ``every``.
-
-    Parameters
-    ----------
-    points : int
-        Ensemble size.
-    steps : int
-        Iterations of the run.
-    max_points : int
-        Points drawn per frame (the subsample size ``M``).
-    max_frames : int
-        Upper bound on the number of frames (besides the first and the last).
-
-    Returns
-    -------
-    int
-        Steps between frames, ``>= 1``. Examples on 2 CPU cores: 10^4 points x 1.2e5 steps ->
-        5041 (25 frames); 10^6 points x 1200 steps -> 748.
-    """
-    recorded = min(points, max_points)
-    frame_seconds = (
-        _NS_PER_RECORDED_POINT * 1e-9 * recorded
-        + _NS_PER_ENSEMBLE_POINT * 1e-9 * points
-        + _FRAME_FIXED_SECONDS
-    )
-    by_cost = math.ceil(frame_seconds * _POINT_STEPS_PER_SECOND / (_OVERHEAD_BUDGET * points))
-    by_count = math.ceil(steps / max_frames) if max_frames > 0 else 1
-    return max(1, by_cost, by_count)
+#: Series rows between frames cost at most this share of the kernel time since the last row
+#: (modelled from the measured kernel speed, so that the rows do not depend on timing noise).
+_SERIES_BUDGET = 0.02
+#: Seconds per ensemble point of one summary (FTLE, A_n, mask; benchmarks/recording_overhead.py).
+_SUMMARY_SECONDS_PER_POINT = 35e-9
 
 
 class RecordingSink(Observer):
     """An :class:`~warpratchet.ensemble.Observer` recording a run as it goes.
 
     A frame (the cloud of a fixed subsample plus the ensemble summary of
-    :func:`~warpratchet.observables.summarize`) is logged when the run starts, after every chunk
-    that reaches the next multiple of ``every`` steps, and when it ends. Frames can only fall on
-    chunk boundaries: run with ``chunk_steps=sink.every`` (what ``warpratchet run --rerun``
-    does) for frames at exact multiples. Recording never changes the run's results.
+    :func:`~warpratchet.observables.summarize`) is logged when the run starts, at the steps of
+    its plan (log-spaced by default, or the multiples of ``every``; :func:`~.plan.plan_frames`),
+    and when the run ends (also when it is interrupted). Recording never changes the results.
 
     Parameters
     ----------
@@ -99,10 +59,12 @@ class RecordingSink(Observer):
         Stream to a newly spawned viewer as well (needs a display).
     max_points : int
         Subsample size ``M``: at most this many points are drawn per frame, the same points in
-        every frame (chosen once with ``seed``).
+        every frame (chosen once with ``seed``); fewer if the size budget needs it.
     every : int, optional
-        Steps between frames; default :func:`frame_every` of the run (set at the first
-        :meth:`begin`).
+        Frames at the multiples of ``every`` steps (widened to fit ``max_bytes``) instead of
+        log-spaced frames within the size and time budgets.
+    max_bytes : int
+        Size budget of the file (default 10 MB): frames and points are planned to stay below it.
     color_by : {"ftle", "class"}
         See :class:`PhaseSpaceRecording`.
     threshold : float, optional
@@ -116,7 +78,9 @@ class RecordingSink(Observer):
     Attributes
     ----------
     summaries : list of Summary
-        The summaries logged, in order (one per frame after step 0).
+        The summaries logged, in order (one per frame after step 0, and the series rows between).
+    plan : Plan or None
+        The frames of the run (set by :meth:`begin`).
     frame_seconds : list of float
         Wall time spent in each :meth:`log_frame` (the recording's cost to the run).
     indices : ndarray, shape (M,)
@@ -130,6 +94,7 @@ class RecordingSink(Observer):
         spawn: bool = False,
         max_points: int = DEFAULT_MAX_POINTS,
         every: int | None = None,
+        max_bytes: int = DEFAULT_MAX_BYTES,
         color_by: Literal["ftle", "class"] = "ftle",
         threshold: float | None = None,
         seed: int = 0,
@@ -137,6 +102,7 @@ class RecordingSink(Observer):
     ) -> None:
         self.max_points = check_count("max_points", max_points, 1)
         self.every = check_optional(check_count, "every", every, 1)
+        self.max_bytes = check_count("max_bytes", max_bytes, 1)
         self.color_by = check_choice("color_by", color_by, COLOR_BY)
         if path is None and not spawn:
             raise ValueError("a recording needs a path, spawn=True, or both")
@@ -152,26 +118,36 @@ class RecordingSink(Observer):
         self.frame_seconds: list[float] = []
         self.indices: np.ndarray | None = None
         self.recording: PhaseSpaceRecording | None = None
-        self._next_frame = 0
+        self.plan: Plan | None = None
+        self._throughput: float | None = None
+        self._setup_seconds = 0.0  # the probe and opening the recording, paid from the time budget
+        self._kernel_seconds = 0.0  # kernel time and steps seen so far: the kernel's real speed
+        self._steps_seen = 0
+        self._last_row = 0
+        self._rows_between = 0
 
     @property
     def frames(self) -> list[int]:
         """Steps of the frames logged so far."""
         return [] if self.recording is None else list(self.recording.frames)
 
-    def open(self, ensemble: Ensemble) -> None:
-        """Open the recording for ``ensemble`` (done by :meth:`begin`; idempotent)."""
+    def open(self, ensemble: Ensemble, points: int | None = None) -> None:
+        """Open the recording for ``ensemble``, drawing ``points`` (default ``max_points``) per frame.
+
+        Done by :meth:`begin` (or the first :meth:`log_frame`); idempotent.
+        """
         if self.recording is not None:
             if self.recording.closed:
                 raise ValueError("this RecordingSink is closed (it records one run): make a new one")
             return
         n = ensemble.points
-        if n <= self.max_points:
+        m = min(n, self.max_points if points is None else points)
+        if n <= m:
             self.indices = np.arange(n)
         else:
             # Sorted, so that gathering walks memory forwards.
             rng = np.random.default_rng(self.seed)
-            self.indices = np.sort(rng.choice(n, size=self.max_points, replace=False))
+            self.indices = np.sort(rng.choice(n, size=m, replace=False))
         info = {
             "points": f"{n} ({ensemble.sampler}, seed {ensemble.seed})",
             "recorded points": f"{len(self.indices)} (fixed subsample, seed {self.seed})",
@@ -187,6 +163,13 @@ class RecordingSink(Observer):
         start = time.perf_counter()
         self._log_frame(ensemble)
         self.frame_seconds.append(time.perf_counter() - start)
+        if self.plan is not None and len(self.frame_seconds) >= 2:
+            # Frames after the first (which has no summary) cost what was measured, at least
+            # what the model says: the rest of the plan shrinks if the budget cannot pay for it.
+            cost = max(
+                float(np.mean(self.frame_seconds[1:])), frame_seconds(len(self.indices), ensemble.points)
+            )
+            self.plan = self.plan.thinned(ensemble.step, sum(self.frame_seconds), cost)
 
     def _log_frame(self, ensemble: Ensemble) -> None:
         self.open(ensemble)
@@ -203,9 +186,14 @@ class RecordingSink(Observer):
         acc = acceleration(sub, step) if self.color_by == "class" else None
         threshold = self.threshold if self.threshold is not None else default_lyapunov_threshold(step)
         self.recording.log_cloud(step, sub["x"], sub["q"], ftle, acc, threshold)
+        self._log_summary(state, step)
+
+    def _log_summary(self, state: dict[str, np.ndarray], step: int) -> None:
+        assert self.recording is not None
         summary = summarize(state, step, self.threshold)
         self.recording.log_summary(step, summary.as_dict())
         self.summaries.append(summary)
+        self._last_row = step
 
     def close(self) -> None:
         """Flush and close the recording (idempotent)."""
@@ -214,18 +202,55 @@ class RecordingSink(Observer):
 
     # -- Observer -------------------------------------------------------------------------------
     def begin(self, ensemble: Ensemble, target_step: int) -> None:
-        if self.every is None:
-            self.every = frame_every(ensemble.points, target_step - ensemble.step, self.max_points)
+        if self.recording is not None and self.recording.closed:
+            raise ValueError("this RecordingSink is closed (it records one run): make a new one")
+        setup = time.perf_counter()
+        # The time budget needs the kernel's real speed (CPU, GPU, a faster kernel): measured.
+        # With a fixed `every` the cadence is the caller's, and the series has the frames only.
+        self._throughput = None if self.every is not None else probe_throughput(ensemble)
+        self.plan = plan_frames(
+            ensemble.step,
+            target_step,
+            ensemble.points,
+            max_points=self.max_points,
+            max_bytes=self.max_bytes,
+            every=self.every,
+            throughput=self._throughput,
+        )
+        self.options["info"] = {**(self.options.get("info") or {}), "frames": self.plan.reason}
+        self.options.setdefault("steps", target_step - ensemble.step)
+        self.open(ensemble, self.plan.points)
+        self._setup_seconds = time.perf_counter() - setup
         if not self.frames or self.frames[-1] != ensemble.step:
             self.log_frame(ensemble)
-        self._next_frame = (ensemble.step // self.every + 1) * self.every
+
+    def next_stop(self, step: int) -> int | None:
+        """The first planned frame after ``step`` (the run loop ends a chunk there)."""
+        if self.plan is None:
+            return None
+        i = bisect.bisect_right(self.plan.steps, step)
+        return self.plan.steps[i] if i < len(self.plan.steps) else None
 
     def after_chunk(self, ensemble: Ensemble, seconds: float) -> None:
-        if ensemble.step >= self._next_frame:
+        step = ensemble.step
+        self._kernel_seconds += seconds
+        self._steps_seen = step - (self.plan.steps[0] if self.plan else 0)
+        if self.plan is not None and step in self.plan.steps:
             self.log_frame(ensemble)
-            self._next_frame = (ensemble.step // self.every + 1) * self.every
+        elif (
+            self._throughput is not None
+            and self._rows_between < self.plan.series_rows
+            # the kernel time since the last row, at the measured speed, pays for this one
+            and _SUMMARY_SECONDS_PER_POINT * self._throughput <= _SERIES_BUDGET * (step - self._last_row)
+        ):
+            # A row of the time series between frames: A_n settling, at a cost under 2%.
+            self.open(ensemble)
+            self._log_summary({name: ensemble.array(name) for name in STATE_FIELDS}, step)
+            self._rows_between += 1
 
     def end(self, ensemble: Ensemble) -> None:
-        if self.frames and self.frames[-1] != ensemble.step:
-            self.log_frame(ensemble)
-        self.close()
+        try:
+            if self.frames and self.frames[-1] != ensemble.step:
+                self.log_frame(ensemble)  # also where an interrupted run stopped
+        finally:
+            self.close()

@@ -9,7 +9,10 @@ where, and in which colours, is :mod:`.scene`.
 from __future__ import annotations
 
 import math
+import os
+import sys
 import uuid
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Literal
@@ -31,6 +34,7 @@ from .scene import (
     SERIES_NAMES,
     THEORY_PATH,
     UNDEFINED_COLOR,
+    axes,
     blueprint,
     class_ids,
     ftle_colors,
@@ -39,7 +43,22 @@ from .scene import (
     torus_positions,
 )
 
-__all__ = ["check_new_file", "PhaseSpaceRecording"]
+__all__ = ["check_new_file", "display_available", "ViewerUnavailable", "PhaseSpaceRecording"]
+
+
+class ViewerUnavailable(RuntimeError):
+    """A viewer cannot be spawned here (no display); the recording to a file still works."""
+
+
+def display_available() -> bool:
+    """Whether a spawned rerun viewer can open a window: on Linux, an X11 or Wayland display.
+
+    Without one the viewer exits at once and the recording stream waits ~20 s for it, then fails
+    (issue 14, item 5). macOS and Windows always have a desktop session to open it in.
+    """
+    if not sys.platform.startswith("linux"):
+        return True
+    return any(os.environ.get(name) for name in ("DISPLAY", "WAYLAND_DISPLAY", "WAYLAND_SOCKET"))
 
 
 def check_new_file(path: str | Path) -> Path:
@@ -64,7 +83,8 @@ class PhaseSpaceRecording:
     path : str or Path, optional
         ``.rrd`` file to write. Must not exist (never overwritten); its folder must exist.
     spawn : bool
-        Also spawn a rerun viewer and stream to it (needs a display; never in tests).
+        Also spawn a rerun viewer and stream to it (needs a display: :class:`ViewerUnavailable`
+        otherwise, before anything is written).
     color_by : {"ftle", "class"}
         Colour points by FTLE (viridis, log scale over ``ftle_range``) or by class
         (:data:`CLASSES`, via an annotation context).
@@ -79,6 +99,8 @@ class PhaseSpaceRecording:
         Extra rows for the parameters document (e.g. points, seed, sampler).
     application_id : str
         rerun application id (recordings with one id share blueprints in the viewer).
+    steps : int, optional
+        Length of the run in steps, for the viewer's playback speed.
 
     Raises
     ------
@@ -88,6 +110,8 @@ class PhaseSpaceRecording:
         ``path`` exists, or its folder does not.
     ImportError
         rerun-sdk is not installed.
+    ViewerUnavailable
+        ``spawn=True`` without a display.
     """
 
     def __init__(
@@ -102,6 +126,7 @@ class PhaseSpaceRecording:
         title: str | None = None,
         info: Mapping[str, object] | None = None,
         application_id: str = "warpratchet",
+        steps: int | None = None,
     ) -> None:
         color_by = check_choice("color_by", color_by, COLOR_BY)
         lo, hi = (float(v) for v in ftle_range)
@@ -111,6 +136,11 @@ class PhaseSpaceRecording:
             raise ValueError("a recording needs a path, spawn=True, or both")
         if path is not None:
             path = check_new_file(path)
+        if spawn and not display_available():
+            raise ViewerUnavailable(
+                "a rerun viewer needs a display (DISPLAY and WAYLAND_DISPLAY are not set); record to "
+                "a file and open it with `rerun FILE` (or `rerun --web-viewer FILE`)"
+            )
         rr = require_rerun()
         self._rr = rr
         self.params = params
@@ -120,12 +150,13 @@ class PhaseSpaceRecording:
         self.theory_A = theory.summary(params)["A"]
         self.frames: list[int] = []
         self.closed = False
+        self.spawned = spawn
 
         rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
         # The step timeline is the only clock that means anything here (replays have no
         # meaningful wall time).
         rec.set_log_time_enabled(False)
-        view = blueprint(trail)
+        view = blueprint(trail, steps)
         if spawn:
             rec.spawn(connect=False)
             sinks = [rr.GrpcSink()] + ([rr.FileSink(str(path))] if path is not None else [])
@@ -155,6 +186,8 @@ class PhaseSpaceRecording:
         else:
             lo, hi = self.ftle_range
             info.setdefault("colour", f"FTLE, viridis on a log scale from {lo:g} (dark) to {hi:g} (bright)")
+        for entity, archetype in axes(rr):
+            rec.log(entity, archetype, static=True)
         text = (f"# {title}\n\n" if title else "") + markdown_parameters(self.params, info)
         rec.log(PARAMETERS_PATH, rr.TextDocument(text, media_type=rr.MediaType.MARKDOWN), static=True)
         for key, entity in SERIES_KEYS.items():
@@ -237,7 +270,13 @@ class PhaseSpaceRecording:
         """Flush everything to the sinks and close the file (idempotent)."""
         if not self.closed:
             self.closed = True
-            self._rec.flush()
+            try:
+                self._rec.flush()
+            except RuntimeError as exc:  # a spawned viewer that went away: the file is still whole
+                if not self.spawned:
+                    raise
+                warnings.warn(f"the rerun viewer did not receive the recording: {exc}", RuntimeWarning,
+                              stacklevel=2)  # fmt: skip
             self._rec.disconnect()
 
     def __enter__(self) -> PhaseSpaceRecording:

@@ -1,0 +1,87 @@
+"""CLI conventions (issue 14, items 5 and 7): --version, help with examples, error lines, figures."""
+
+from __future__ import annotations
+
+import sys
+
+import pytest
+from support import MAP_FLAGS, cli
+
+import warpratchet
+from warpratchet.cli import EXAMPLES, SUBCOMMANDS, build_parser, main
+
+
+def test_version():
+    done = cli("--version")
+    assert done.returncode == 0 and done.stdout == f"warpratchet {warpratchet.__version__}\n"
+
+
+def test_top_level_help_describes_the_command_and_gives_examples(capsys):
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert "The ``warpratchet`` command." not in out  # the old one-liner
+    assert "weak-chaos ratchet accelerator" in out and "examples:" in out
+    for name in SUBCOMMANDS:
+        assert f"    {name}" in out
+    assert "warpratchet run --K 3 --b1 0.1 --b2 0.01" in out
+
+
+@pytest.mark.parametrize("name", [n for n in SUBCOMMANDS if n != "figures"])
+def test_every_subcommand_help_has_a_description_and_examples(name, capsys):
+    assert main([name, "--help"]) == 0
+    out = capsys.readouterr().out
+    parser = build_parser()._subparsers._group_actions[0].choices[name]
+    assert parser.description and len(parser.description) > 30
+    assert "examples:" in out and all(line in out for line in EXAMPLES[name])
+
+
+def test_parse_errors_are_one_line_with_the_subcommand_and_no_doubled_prefix():
+    done = cli("run", *MAP_FLAGS, "--points", "0", "--quiet")
+    assert done.returncode == 2 and done.stdout == ""
+    [line] = done.stderr.strip().splitlines()
+    assert line.startswith("warpratchet run: error: argument --points: points = 0 is outside")
+    assert line.count("error:") == 1 and "warpratchet: error: warpratchet" not in line
+    assert line.endswith("(see 'warpratchet run --help')")
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["run", *MAP_FLAGS, "--threshold", "-1"], "threshold = -1.0 is outside"),
+        (["sumrule", *MAP_FLAGS, "--threshold", "-0.5"], "threshold = -0.5 is outside"),
+        (["sumrule", *MAP_FLAGS, "--m-max", "0"], "m_max = 0 is outside"),
+        (["sweep", "--path", "maximal", "--b2", "0.01:0.02:2", "--threshold", "-1"], "threshold = -1.0"),
+        (["run", *MAP_FLAGS, "--rerun-points", "0"], "rerun_points = 0 is outside"),
+    ],
+)
+def test_every_range_is_checked(argv, needle, capsys):
+    assert main([*argv, "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and needle in err
+
+
+def test_figures_subcommand_is_the_viz_command(tmp_path, capsys):
+    assert main(["figures", "--help"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: warpratchet figures") and "--quick" in out
+    assert main(["figures", "--only", "fig99", "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("warpratchet figures: error: --only 'fig99'") and err.count("\n") == 1
+
+
+def test_figures_without_matplotlib_is_one_clear_line(tmp_path, monkeypatch, capsys):
+    monkeypatch.setitem(sys.modules, "matplotlib", None)  # `import matplotlib` raises ImportError
+    assert main(["figures", "--only", "fig3", "--out", str(tmp_path / "f")]) == 2
+    err = capsys.readouterr().err
+    assert err == (
+        "warpratchet figures: error: matplotlib is needed for the figures: "
+        "pip install 'warpratchet[figures]'\n"
+    )
+    assert not (tmp_path / "f").exists()
+
+
+def test_the_command_starts_without_importing_warp():
+    """--help and --version answer without Warp (a fast start, and little for Ctrl-C to hit)."""
+    code = "import sys; from warpratchet.cli import main; main(['--version']); print('warp' in sys.modules)"
+    done = __import__("subprocess").run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert done.stdout.splitlines()[-1] == "False", done.stderr

@@ -1,0 +1,219 @@
+"""The chunked run loop behind :meth:`Ensemble.run <warpratchet.ensemble.Ensemble.run>`.
+
+One idea: advance an ensemble to a target step in chunks, tell the observers after each, and
+stop only *between* chunks. Three guarantees follow from that:
+
+* **Consistent on Ctrl-C.** A Warp launch cannot be cancelled, and a chunk runs as several
+  launches (one per CPU thread): stopping halfway would leave some points a chunk ahead of the
+  step counter (issue 14: ``ens.step`` 0, the arrays at step 20000, every later ``A_n`` divided
+  by the wrong ``n``). So while the loop runs, SIGINT is *deferred*: the handler notes it, the
+  chunk in flight and the observers' ``after_chunk`` finish, every observer's ``end`` runs, and
+  then the original handler is called (Python's raises :class:`KeyboardInterrupt`). The
+  ensemble's ``step`` always matches its arrays. Deferral needs the main thread and a Python
+  handler (the default, IPython's); otherwise signals are left alone.
+* **Observers always end.** ``end`` is called on every observer whose ``begin`` ran, whatever
+  happened (an exception, an interrupt), even if another observer's ``end`` raises; the first
+  error is re-raised after all of them.
+* **An error inside a chunk is never silent.** If advancing raises (a failed launch), the
+  in-flight launches are waited for and the ensemble is marked undefined: its points may sit at
+  different steps, so :meth:`Ensemble.run` and :meth:`Ensemble.summary` refuse it afterwards.
+
+Stops. An observer may define ``next_stop(step) -> int | None``: the next step after ``step``
+at which it wants to see the ensemble (a recording's log-spaced frames). The loop then ends a
+chunk there too; only the observers that asked for that step are called there, so an archive
+still gets exactly one row per regular chunk (results never depend on chunking anyway). The
+``seconds`` passed to ``after_chunk`` are the kernel seconds since *that* observer was last
+called.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import threading
+import time
+from collections.abc import Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+__all__ = ["Observer", "deferred_interrupts", "run_chunks", "archive_sink"]
+
+
+class Observer:
+    """Receives the ensemble after each chunk of :meth:`Ensemble.run <warpratchet.ensemble.Ensemble.run>`.
+
+    Subclass and override what you need; archives, recordings and progress bars are observers.
+    An observer may also define ``next_stop(step) -> int | None``, the next step after ``step``
+    at which it wants ``after_chunk`` called (see the module docstring).
+    """
+
+    def begin(self, ensemble: Any, target_step: int) -> None:
+        """Called once before the first chunk; the run will stop at ``target_step``."""
+
+    def after_chunk(self, ensemble: Any, seconds: float) -> None:
+        """Called after each chunk; ``seconds``: kernel wall time since this observer was last called."""
+
+    def end(self, ensemble: Any) -> None:
+        """Called once after the last chunk (also when the run is interrupted or fails)."""
+
+
+class _Deferred:
+    """SIGINT noted while a run is between two safe points."""
+
+    def __init__(self) -> None:
+        self.pending: tuple[int, Any] | None = None
+        self.previous: Any = None
+
+    def handler(self, signum: int, frame: Any) -> None:
+        if self.pending is None:
+            self.pending = (signum, frame)
+
+
+@contextlib.contextmanager
+def deferred_interrupts() -> Iterator[_Deferred]:
+    """Defer SIGINT for the duration of the block; deliver it to the previous handler on exit.
+
+    Yields an object whose ``pending`` is set once a SIGINT arrived. Outside the main thread, or
+    when SIGINT is ignored or has no Python handler, nothing is changed (``pending`` stays None).
+    """
+    deferred = _Deferred()
+    installed = False
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.getsignal(signal.SIGINT)
+        if callable(previous):
+            deferred.previous = previous
+            signal.signal(signal.SIGINT, deferred.handler)
+            installed = True
+    try:
+        yield deferred
+    finally:
+        if installed:
+            signal.signal(signal.SIGINT, deferred.previous)
+            if deferred.pending is not None:
+                deferred.previous(*deferred.pending)  # Python's default raises KeyboardInterrupt
+
+
+def _end_all(ensemble: Any, observers: Sequence[Any]) -> None:
+    """``end`` on every observer; the first exception is raised once all have run."""
+    error: BaseException | None = None
+    for obs in observers:
+        try:
+            obs.end(ensemble)
+        except BaseException as exc:  # noqa: BLE001 - every sink must get its end, then re-raise
+            error = error or exc
+    if error is not None:
+        raise error
+
+
+def _next_stops(stoppers: Sequence[Any], step: int) -> list[int | None]:
+    stops = []
+    for obs in stoppers:
+        stop = obs.next_stop(step)
+        stops.append(None if stop is None or stop <= step else int(stop))
+    return stops
+
+
+def run_chunks(
+    ensemble: Any,
+    target: int,
+    observers: Sequence[Any],
+    chunk_steps: int,
+    pool: ThreadPoolExecutor | None,
+) -> None:
+    """Advance ``ensemble`` to ``target`` in chunks ending at global multiples of ``chunk_steps``.
+
+    Parameters
+    ----------
+    ensemble : Ensemble
+        Advanced with its ``_advance(steps, pool)``.
+    target : int
+        Global step to reach.
+    observers : sequence of Observer
+        ``begin``, ``after_chunk`` after every chunk (and at the stops they ask for), ``end``.
+    chunk_steps : int
+        Steps per regular chunk.
+    pool : ThreadPoolExecutor or None
+        CPU shards' threads (shut down here, after the last launch finished).
+    """
+    stoppers = [obs for obs in observers if callable(getattr(obs, "next_stop", None))]
+    unseen = {id(obs): 0.0 for obs in observers}  # kernel seconds since each was last called
+    began: list[Any] = []
+    with deferred_interrupts() as interrupt:
+        try:
+            for obs in observers:
+                began.append(obs)
+                obs.begin(ensemble, target)
+            while ensemble.step < target and interrupt.pending is None:
+                step = ensemble.step
+                # Chunk ends sit at global multiples of chunk_steps, so a run resumed from any
+                # step reports (and archives) at the same steps as an uninterrupted one.
+                chunk_end = min(step + chunk_steps - step % chunk_steps, target)
+                stops = _next_stops(stoppers, step)
+                stop = min([chunk_end] + [s for s in stops if s is not None])
+                start = time.perf_counter()
+                try:
+                    ensemble._advance(stop - step, pool)
+                except BaseException as exc:
+                    if pool is not None:
+                        pool.shutdown(wait=True)  # nothing may still be writing the arrays
+                    if ensemble.step == step:
+                        ensemble.undefined = (
+                            f"an error stopped a chunk from step {step} to {stop} partway "
+                            f"({type(exc).__name__}: {exc}); points may be at different steps"
+                        )
+                    raise
+                seconds = time.perf_counter() - start
+                for key in unseen:
+                    unseen[key] += seconds
+                if stop == chunk_end:
+                    called = list(observers)
+                else:
+                    called = [obs for obs, s in zip(stoppers, stops, strict=True) if s == stop]
+                for obs in called:
+                    elapsed, unseen[id(obs)] = unseen[id(obs)], 0.0
+                    obs.after_chunk(ensemble, elapsed)
+        finally:
+            if pool is not None:
+                pool.shutdown(wait=True)
+            _end_all(ensemble, began)
+
+
+def archive_sink(ensemble: Any, path: str | os.PathLike, chunk_steps: int | None) -> Any:
+    """The ArchiveSink of ``Ensemble.run(archive=path)``: a new archive, or this run's to append to.
+
+    An existing file is appended to only if it is an archive whose checkpoint holds exactly this
+    ensemble (same step, every state array equal bit for bit): what a previous ``run(...,
+    archive=path)`` of this ensemble leaves when it completes. Anything else is refused, so an
+    archive never mixes two runs.
+    """
+    # Imported here: archives sit above the run loop (they observe runs), and only this
+    # convenience of Ensemble.run reaches up to them.
+    import numpy as np
+
+    from .archive import ArchiveSink, open_archive
+
+    if not os.path.lexists(path):
+        return ArchiveSink(path, ensemble, chunk_steps=chunk_steps, threshold=None)
+    with open_archive(path) as arc:
+        state, step = arc.checkpoint()
+        params = arc.params
+    same = (
+        params == ensemble.params
+        and step == ensemble.step
+        and all(np.array_equal(state[name], ensemble.array(name)) for name in state)
+    )
+    if not same:
+        raise ValueError(
+            f"{os.fspath(path)} exists and does not hold this ensemble at step {ensemble.step} "
+            f"(its checkpoint is at step {step}); choose a new path, or continue that run from "
+            "open_archive(path).ensemble()"
+        )
+    sink, _ = ArchiveSink.resume(path, threads=ensemble.threads, device=ensemble.device)
+    if chunk_steps is not None and chunk_steps != sink.chunk_steps:
+        sink.close()
+        raise ValueError(
+            f"chunk_steps = {chunk_steps} differs from the archive's chunk_steps = {sink.chunk_steps}"
+        )
+    sink.ensemble = ensemble  # the restored twin equals this ensemble bit for bit (checked above)
+    return sink
