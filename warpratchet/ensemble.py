@@ -294,37 +294,28 @@ class Ensemble:
         """Arrays passed to :attr:`_kernel` after the state arrays, shape ``(points,)`` each."""
         return []
 
-    def _launch(self, lo: int, hi: int, steps: int) -> None:
-        p = self.params
-        arrays = [self._arrays[name] for name in _KERNEL_FIELDS] + self._extra_arrays()
-        wp.launch(
-            self._kernel,
-            dim=kernels.launch_dim(hi - lo),
-            inputs=[
-                *(a[lo:hi] for a in arrays),
-                hi - lo,
-                self.step,
-                steps,
-                p.K,
-                p.b1,
-                1.0 - p.b2,
-                p.l1,
-                p.l2,
-                p.c,
-            ],
-            device=self.device,
+    def _launch(self, lo: int, hi: int, step0: int, steps: int) -> None:
+        arrays = [self._arrays[name] for name in _KERNEL_FIELDS]
+        extra = self._extra_arrays()
+        self._kernel.launch(
+            self.device, [a[lo:hi] for a in arrays], [a[lo:hi] for a in extra], step0, steps, self.params
         )
 
     def _advance(self, steps: int, pool: ThreadPoolExecutor | None) -> None:
-        if pool is None:
-            self._launch(0, self.points, steps)
-            wp.synchronize_device(self.device)
-        else:
-            bounds = np.linspace(0, self.points, self.threads + 1).astype(int)
-            shards = [(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
-            for future in [pool.submit(self._launch, lo, hi, steps) for lo, hi in shards]:
-                future.result()
-        self.step += steps
+        # One launch advances at most MAX_LAUNCH_STEPS (its loop counter is 32-bit): a longer
+        # chunk is split, so that no step is dropped.
+        while steps > 0:
+            todo = min(steps, kernels.MAX_LAUNCH_STEPS)
+            if pool is None:
+                self._launch(0, self.points, self.step, todo)
+                wp.synchronize_device(self.device)
+            else:
+                bounds = np.linspace(0, self.points, self.threads + 1).astype(int)
+                shards = [(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
+                for future in [pool.submit(self._launch, lo, hi, self.step, todo) for lo, hi in shards]:
+                    future.result()
+            self.step += todo
+            steps -= todo
 
     def run(
         self,
@@ -353,7 +344,7 @@ class Ensemble:
         observers = list(observers)
         target = self.step + steps
         # Compile (or load from cache) before any thread launches.
-        wp.load_module(kernels, device=self.device)
+        self._kernel.load(self.device)
         use_pool = wp.get_device(self.device).is_cpu and self.threads > 1 and self.points > 1
         pool = ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet") if use_pool else None
         for obs in observers:
