@@ -73,6 +73,7 @@ class Contender:
     threads: int
     advance: Advance | None  # None: unavailable
     unavailable: str = ""
+    device: str = "cpu"  # Warp device of the warpratchet rows
 
 
 def _copy(state: State) -> State:
@@ -248,10 +249,19 @@ def c_avx512_contenders(params: MapParams, threads: list[int], workdir: Path) ->
 
 
 # -- warpratchet ------------------------------------------------------------------------------------
-def warp_contenders(params: MapParams, threads: list[int]) -> tuple[list[Contender], str]:
+def _label(label: str, device: str) -> str:
+    return label if device == "cpu" else f"{label} ({device})"
+
+
+def warp_contenders(
+    params: MapParams, threads: list[int], device: str = "cpu"
+) -> tuple[list[Contender], str]:
+    """``Ensemble.run`` on ``device`` (on a GPU one row: CPU threads do not apply)."""
+    threads = threads if device == "cpu" else [1]
+
     def make(n_threads: int) -> Advance:
         def advance(state: State, step0: int, steps: int) -> tuple[State, Timing]:
-            ens = Ensemble.from_state(params, state, step0, threads=n_threads)
+            ens = Ensemble.from_state(params, state, step0, threads=n_threads, device=device)
             with _Clock() as clock:
                 ens.run(steps)
             out = ens.state()
@@ -260,28 +270,28 @@ def warp_contenders(params: MapParams, threads: list[int]) -> tuple[list[Contend
         return advance
 
     # Warm-up: compiles the kernel (or loads it from Warp's cache) outside every measurement.
-    Ensemble.sample(params, 64, init=INIT, seed=SEED, threads=1).run(16)
-    build = (
-        f"warp {version('warp-lang')} CPU: Ensemble.run, {INTERLEAVE} points per Warp thread, "
-        "one Warp launch per Python thread"
-    )
-    return [Contender("warpratchet", "warpratchet", t, make(t)) for t in threads], build
+    Ensemble.sample(params, 64, init=INIT, seed=SEED, threads=1, device=device).run(16)
+    build = f"warp {version('warp-lang')} {device}: Ensemble.run, {INTERLEAVE} points per Warp thread"
+    build += ", one Warp launch per Python thread" if device == "cpu" else ""
+    label = _label("warpratchet", device)
+    return [Contender("warpratchet", label, t, make(t), device=device) for t in threads], build
 
 
 def warp_indicator_contenders(
-    params: MapParams, threads: list[int], points: int
+    params: MapParams, threads: list[int], points: int, device: str = "cpu"
 ) -> tuple[list[Contender], str]:
     """``IndicatorEnsemble.run``: the same orbit plus MEGNO and FLI (``advance_map_indicators``).
 
     The indicators must start at step 0, so each measurement samples the benchmark's ensemble
     afresh and advances it ``WARMUP_STEPS`` untimed, to the very state the other rows start from.
     """
+    threads = threads if device == "cpu" else [1]
 
     def make(n_threads: int) -> Advance:
         def advance(state: State, step0: int, steps: int) -> tuple[State, Timing]:
             start_points = Ensemble.sample(params, points, init=INIT, seed=SEED, threads=1)
             ens = IndicatorEnsemble(
-                params, start_points.array("x"), start_points.array("p0"), threads=n_threads
+                params, start_points.array("x"), start_points.array("p0"), threads=n_threads, device=device
             ).run(step0)
             del start_points
             with _Clock() as clock:
@@ -291,9 +301,10 @@ def warp_indicator_contenders(
 
         return advance
 
-    IndicatorEnsemble(params, np.zeros(64), np.zeros(64), threads=1).run(16)  # compile outside timings
-    build = "IndicatorEnsemble.run: advance_map plus MEGNO and FLI (one log per point every 8 steps)"
-    rows = [Contender("warpratchet_indicators", "warpratchet + indicators", t, make(t)) for t in threads]
+    IndicatorEnsemble(params, np.zeros(64), np.zeros(64), threads=1, device=device).run(16)  # compile
+    build = f"{device}: IndicatorEnsemble.run, advance_map plus MEGNO and FLI (a log per point every 8 steps)"
+    label = _label("warpratchet + indicators", device)
+    rows = [Contender("warpratchet_indicators", label, t, make(t), device=device) for t in threads]
     return rows, build
 
 

@@ -146,6 +146,7 @@ def test_state_is_at_most_80_bytes_per_point_and_1e8_points_fit(report: dict[str
         (("--steps", "-3"), "-3 is outside the allowed range >= 1"),
         (("--seconds", "0"), "0.0 is outside the allowed range 0 < seconds <= 600"),
         (("--points", "many"), "invalid integer value: 'many'"),
+        (("--device", "cuda:7"), "device = 'cuda:7' is not available"),
     ],
 )
 def test_bad_input_is_one_line_and_exit_2(args: tuple[str, ...], needle: str) -> None:

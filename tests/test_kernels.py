@@ -143,6 +143,72 @@ def test_cpu_and_portable_step_bodies_agree_bit_for_bit(kernel, extra_fields, p)
         assert np.count_nonzero(cpu[FIELDS.index("log_stretch")]) > 100
 
 
+# A variant that uses the step's facts: per point, the steps that ended in B and the whole units
+# gained, summed in the kernel (the pattern of return times and flights, issue 16).
+@wp.struct
+class _FactArrays:
+    visits: wp.array(dtype=wp.float64)
+    gained: wp.array(dtype=wp.float64)
+
+
+@wp.struct
+class _FactSums:
+    visits: kernels.step.LaneVector
+    gained: kernels.step.LaneVector
+
+
+@wp.func
+def _load_sums(arrays: _FactArrays, first: int, spacing: int, n: int):
+    acc = _FactSums()
+    acc.visits = kernels.step.load_lane_vector(arrays.visits, first, spacing, n)
+    acc.gained = kernels.step.load_lane_vector(arrays.gained, first, spacing, n)
+    return acc
+
+
+@wp.func
+def _store_sums(arrays: _FactArrays, acc: _FactSums, first: int, spacing: int, n: int):
+    kernels.step.store_lane_vector(arrays.visits, acc.visits, first, spacing, n)
+    kernels.step.store_lane_vector(arrays.gained, acc.gained, first, spacing, n)
+
+
+@wp.func
+def _add_facts(acc: wp.ref[_FactSums], s: wp.ref[kernels.Lanes], global_step: wp.int64):
+    for k in range(wp.static(kernels.INTERLEAVE)):
+        acc.visits[k] = acc.visits[k] + s.in_strip[k]
+        acc.gained[k] = acc.gained[k] + s.gain[k]
+
+
+@wp.func
+def _no_check(acc: wp.ref[_FactSums], s: wp.ref[kernels.Lanes], check: wp.int64):
+    pass
+
+
+_FACTS = kernels.advance_kernel(
+    kernels.Variant("test_facts", _FactArrays, _FactSums, _load_sums, _store_sums, _add_facts, _no_check),
+    module_suffix=".test_facts",
+)
+
+
+@pytest.mark.parametrize("body", ["cpu", "portable"])
+def test_a_variant_sees_each_steps_gain_and_whether_it_ended_in_the_strip(body):
+    """The facts a variant gets per step, against the NumPy twin stepped one step at a time."""
+    p = MapParams(3.0, 0.1, 0.01)
+    x, q = _start(p, n=333)
+    steps = 300
+    got = _advance_arrays(_FACTS, body, p, x, q, 5, steps, extra_fields=2)
+    state = Ensemble(p, x, q, threads=1).state()
+    visits, gained = np.zeros(x.size), np.zeros(x.size)
+    for s in range(steps):
+        after = reference.advance(p, state, 1, step0=5 + s)
+        visits += (after["x"] <= p.b1) | (after["x"] >= 1.0 - p.b2)
+        gained += after["winding"] - state["winding"]
+        state = after
+    assert 0 < visits.sum() < visits.size * steps and np.count_nonzero(gained) > 0
+    np.testing.assert_array_equal(got[6], visits)
+    np.testing.assert_array_equal(got[7], gained)
+    np.testing.assert_array_equal(got[FIELDS.index("winding")], state["winding"])
+
+
 def test_portable_kernels_compile_for_cuda(tmp_path):
     """What runs on CUDA compiles for CUDA (NVRTC, no GPU needed); the CPU body is never built for it."""
     runtime = wp._src.context.runtime

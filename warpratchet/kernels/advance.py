@@ -51,7 +51,7 @@ class Variant:
 
     ``cpu_after_step``, ``cpu_after_check``: optional replacements used with the CPU body (e.g.
     a ``wp.func_native`` on whole lane vectors); they must give bitwise the same results, which
-    ``tests/test_kernels.py`` checks for every variant.
+    ``tests/test_kernels.py`` checks for the package's variants (add a new one there).
     """
 
     name: str
@@ -97,10 +97,10 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
 class AdvanceKernel:
     """A variant's kernel on both step bodies; :meth:`launch` picks the body for the device."""
 
-    def __init__(self, variant: Variant) -> None:
+    def __init__(self, variant: Variant, module_suffix: str = "") -> None:
         self.variant = variant
-        self.cpu = _build(variant, CPU, CPU_MODULE, CPU_MODULE_OPTIONS)
-        self.portable = _build(variant, PORTABLE, PORTABLE_MODULE, MODULE_OPTIONS)
+        self.cpu = _build(variant, CPU, CPU_MODULE + module_suffix, CPU_MODULE_OPTIONS)
+        self.portable = _build(variant, PORTABLE, PORTABLE_MODULE + module_suffix, MODULE_OPTIONS)
 
     def kernel(self, device: str, body: str | None = None) -> wp.Kernel:
         """The Warp kernel for ``device``: the CPU body on the CPU, the portable one elsewhere.
@@ -162,6 +162,10 @@ def coefficients(params: Any) -> Coefficients:
     return c
 
 
-def advance_kernel(variant: Variant) -> AdvanceKernel:
-    """Build ``variant``'s kernel on both step bodies."""
-    return AdvanceKernel(variant)
+def advance_kernel(variant: Variant, module_suffix: str = "") -> AdvanceKernel:
+    """Build ``variant``'s kernel on both step bodies.
+
+    The package's kernels share two Warp modules (one compilation each); ``module_suffix`` puts a
+    variant in modules of its own (e.g. ``".transport"``), compiled only when it is used.
+    """
+    return AdvanceKernel(variant, module_suffix)

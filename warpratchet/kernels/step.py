@@ -10,7 +10,7 @@ makes the two bitwise equal):
   lose the digits that ``x' = x + p' mod 1`` needs;
 * ``x' = x + q``, minus 1 if that is ``>= 1`` (exact: ``x + q < 2``);
 * tangent ``(dx, dp)``: ``dp' = dp + (K*f')*dx``, ``dx' = dx + dp'`` (``det DM = 1``);
-* renormalisation (:func:`renorm` here, called by the kernels after every global step that is a
+* renormalisation (``Body.renorm``, called by the kernels after every global step that is a
   multiple of ``RENORM_CHECK_EVERY``): a tangent with ``|dx| > RENORM_THRESHOLD`` is divided by
   its norm ``h = sqrt(dx^2 + dp^2)`` and ``log(h)`` is added to the log-stretch.
 
@@ -292,7 +292,8 @@ __builtin_memcpy(&dp, &s.dp, sizeof(v_t));
 const v_t threshold = {RENORM_THRESHOLD!r};
 const auto big = __builtin_elementwise_abs(dx) > threshold;
 if (__builtin_reduce_or(big) != 0) {{
-    /* With 32 lanes some lane passes 1e100 at about every other check of a chaotic ensemble.
+    /* A chaotic tangent passes 1e100 every ~660 steps (~80 checks), so with 32 lanes this branch
+       runs at about two checks in five.
        sqrt and division are IEEE in vector form too; log goes lane by lane. */
     v_t log_stretch;
     __builtin_memcpy(&log_stretch, &s.log_stretch, sizeof(v_t));
