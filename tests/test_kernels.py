@@ -223,10 +223,11 @@ def test_portable_kernels_compile_for_cuda(tmp_path):
     assert artifact.stat().st_size > 0
 
 
-def test_renormalisation_was_exercised_and_matches_every_step_normalisation():
+@pytest.mark.parametrize("device", DEVICES)
+def test_renormalisation_was_exercised_and_matches_every_step_normalisation(device):
     """Threshold renormalisation (every 8 steps, |dx| > 1e100) against the textbook per-step one."""
     p = MapParams(3.0, 0.05, 0.02)
-    ens = _ensemble(p, n=400)
+    ens = _ensemble(p, n=400, device=device)
     start = ens.state()
     ens.run(2000)
     got = ens.state()
@@ -240,7 +241,8 @@ def test_renormalisation_was_exercised_and_matches_every_step_normalisation():
     assert np.abs(ftle[~chaotic] - ftle_textbook[~chaotic]).max() < 1e-12
 
 
-def test_tangent_map_has_unit_determinant_in_the_kernel():
+@pytest.mark.parametrize("device", DEVICES)
+def test_tangent_map_has_unit_determinant_in_the_kernel(device):
     """det DM = 1: propagate (1, 0) and (0, 1) one step with the kernel, form the 2x2 matrix."""
     p = MapParams(3.0, 0.1, 0.05)
     x = np.linspace(0, 1, 2001, endpoint=False)
@@ -249,7 +251,7 @@ def test_tangent_map_has_unit_determinant_in_the_kernel():
         ens = Ensemble(p, x, np.full_like(x, 0.3))
         st = ens.state()
         st["dx"][:], st["dp"][:] = tangent
-        ens = Ensemble.from_state(p, st, 0)
+        ens = Ensemble.from_state(p, st, 0, device=device)
         ens.run(1)
         columns.append((ens.array("dx").copy(), ens.array("dp").copy()))
     (a, c), (b, d) = columns
@@ -258,12 +260,16 @@ def test_tangent_map_has_unit_determinant_in_the_kernel():
     np.testing.assert_array_equal(np.stack([[a, b], [c, d]]).transpose(2, 0, 1), p.jacobian(x))
 
 
-def test_results_do_not_depend_on_thread_count_or_chunking():
-    """Bitwise identical for 1, 2 and 3 threads, any chunk length, and a run split in pieces."""
+@pytest.mark.parametrize("device", DEVICES)
+def test_results_do_not_depend_on_thread_count_or_chunking(device):
+    """Bitwise identical for 1, 2 and 3 threads, any chunk length, and a run split in pieces.
+
+    (On a GPU the CPU thread count does not apply; the chunkings still must not matter.)
+    """
     p = MapParams(3.0, 0.1, 0.01)
 
     def final(threads, pieces, chunk):
-        ens = Ensemble.sample(p, 1001, "torus", seed=5, threads=threads)
+        ens = Ensemble.sample(p, 1001, "torus", seed=5, threads=threads, device=device)
         for steps in pieces:
             ens.run(steps, chunk_steps=chunk)
         return ens.state()
@@ -275,19 +281,21 @@ def test_results_do_not_depend_on_thread_count_or_chunking():
             np.testing.assert_array_equal(values, other[name], err_msg=f"{name} threads={threads}")
 
 
-def test_momentum_keeps_full_precision_far_from_the_origin():
+@pytest.mark.parametrize("device", DEVICES)
+def test_momentum_keeps_full_precision_far_from_the_origin(device):
     """An accelerator-mode point gains one unit per step; after 10^5 steps p ~ 1e5 and x is still exact."""
     p = MapParams(3.0, 0.1, 0.01)
     (x0,) = [x for w, x in theory.accelerator_modes(p) if w == 1]
     # Off the fixed point (p0 = 0.02): an orbit inside the L island, rotating around it.
-    ens = Ensemble(p, np.array([x0]), np.array([0.02]), threads=1)
+    ens = Ensemble(p, np.array([x0]), np.array([0.02]), threads=1, device=device)
     ens.run(100_000)
     assert ens.momentum()[0] == pytest.approx(0.02 + 100_000, abs=0.2)
     assert 0.0 <= ens.array("x")[0] < 1.0
 
 
-def test_state_is_56_bytes_per_point():
-    ens = Ensemble.sample(MapParams(3.0, 0.1, 0.01), 10, "torus")
+@pytest.mark.parametrize("device", DEVICES)
+def test_state_is_56_bytes_per_point(device):
+    ens = Ensemble.sample(MapParams(3.0, 0.1, 0.01), 10, "torus", device=device)
     assert sum(ens.array(name).itemsize for name in ens.state()) == 56
 
 
