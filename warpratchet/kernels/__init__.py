@@ -31,7 +31,10 @@ lane vectors, 32, ``-mprefer-vector-width=512``                   0.84
 
 So: :data:`INTERLEAVE` = 32, 512-bit vectors (stated in ``cpu_compiler_flags``, as LLVM's tuning
 for some AVX-512 CPUs prefers 256 bits), ``-ffp-contract=off`` and ``fuse_fp=False`` (no FMA
-contraction, for bitwise equality with NumPy), Warp's inline thresholds (:mod:`.runtime`). The
+contraction, for bitwise equality with NumPy), Warp's inline thresholds (:mod:`.runtime`).
+On a CPU without AVX-512, :data:`INTERLEAVE` = 16: with code generation limited to AVX2
+(``-target-cpu znver3`` on the same machine, same measure) 32 lanes spill registers and ran at
+0.33, 16 lanes at 0.55, 8 lanes at 0.49, and the scalar body before at 0.10. The
 step loop is then 143 instructions for 32 point-steps, 104 of them on ``zmm`` registers, four
 ``vrndscalepd`` and no scalar arithmetic (before: 171 instructions for 8 point-steps, 49 of them
 scalar ``sd``); ``benchmarks/instruction_mix.py`` prints it.
