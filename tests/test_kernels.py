@@ -1,12 +1,30 @@
-"""The Warp kernel against its NumPy twin, bit for bit, and the tangent bookkeeping."""
+"""The Warp kernels against their NumPy twin, bit for bit, and the tangent bookkeeping.
+
+Kernel tests run on every device: ``cpu`` and ``cuda:0`` (skipped where there is no GPU). On
+CUDA, with ``fuse_fp=False`` (no FMA contraction) and IEEE division and square root, the orbit and
+the tangent are the CPU's bit for bit; ``log`` is CUDA's own, so the log-stretch is compared to a
+few ulp (compiled here with NVRTC, not run: this machine has no GPU).
+"""
 
 import numpy as np
 import pytest
+import warp as wp
 
-from warpratchet import reference, theory
+from warpratchet import kernels, reference, theory
 from warpratchet.ensemble import Ensemble
 from warpratchet.observables import lyapunov
 from warpratchet.params import MapParams
+from warpratchet.sumrule import IndicatorEnsemble
+
+kernels.init_warp()
+DEVICES = [
+    "cpu",
+    pytest.param(
+        "cuda:0",
+        marks=pytest.mark.skipif(not wp.is_cuda_available(), reason="no CUDA device on this machine"),
+    ),
+]
+FIELDS = ("x", "q", "winding", "dx", "dp", "log_stretch")
 
 CASES = [
     MapParams(3.0, 0.1, 0.01),  # domain LR, Fig. 7 range
@@ -18,33 +36,198 @@ CASES = [
 ]
 
 
-def _ensemble(p: MapParams, n: int = 1000, seed: int = 3, threads: int = 2) -> Ensemble:
+def _start(p: MapParams, n: int = 1000, seed: int = 3) -> tuple[np.ndarray, np.ndarray]:
     rng = np.random.default_rng(seed)
     # Include exact kink positions and p values that push t = q + K f across integers.
     x = rng.random(n)
     x[:4] = [0.0, p.b1, 1.0 - p.b2, 0.5]
     q = rng.random(n) - 3.0  # negative momenta exercise the winding bookkeeping
-    return Ensemble(p, x, q, threads=threads)
+    return x, q
 
 
+def _ensemble(p: MapParams, n: int = 1000, seed: int = 3, threads: int = 2, device: str = "cpu") -> Ensemble:
+    return Ensemble(p, *_start(p, n, seed), threads=threads, device=device)
+
+
+def _assert_reference(got: dict, expected: dict, device: str) -> None:
+    """Bitwise on the CPU; on CUDA bitwise but for the log-stretch (CUDA's log, see the docstring)."""
+    for name in FIELDS:
+        if device != "cpu" and name == "log_stretch":
+            np.testing.assert_allclose(got[name], expected[name], rtol=1e-14, atol=0, err_msg=name)
+        else:
+            np.testing.assert_array_equal(got[name], expected[name], err_msg=f"{name} on {device}")
+
+
+@pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("p", CASES, ids=lambda p: f"K{p.K:.4g}-b{p.b1:g}-{p.b2:g}")
-def test_kernel_equals_numpy_reference_bit_for_bit(p):
+def test_kernel_equals_numpy_reference_bit_for_bit(p, device):
     """1000 points x 500 steps, started at global step 3 so renormalisation checks are off-phase."""
-    ens = _ensemble(p)
+    ens = _ensemble(p, device=device)
     ens.step = 3  # a run resumed from step 3: the checks fall on global steps 8, 16, ...
     start = ens.state()
     ens.run(500, chunk_steps=97)
     expected = reference.advance(p, start, 500, step0=3)
     got = ens.state()
-    for name in ("x", "q", "winding", "dx", "dp", "log_stretch"):
-        np.testing.assert_array_equal(got[name], expected[name], err_msg=name)
+    _assert_reference(got, expected, device)
     assert np.all((got["x"] >= 0) & (got["x"] < 1)) and np.all((got["q"] >= 0) & (got["q"] < 1))
 
 
-def test_renormalisation_was_exercised_and_matches_every_step_normalisation():
+@pytest.mark.parametrize("device", DEVICES)
+def test_global_steps_past_2_to_the_31_renormalise_in_phase(device):
+    """Global step numbers are 64-bit: a run resumed at step 2^33 + 3 checks at multiples of 8."""
+    p = MapParams(3.0, 0.05, 0.02)
+    ens = _ensemble(p, n=300, device=device)
+    ens.step = 2**33 + 3
+    start = ens.state()
+    ens.run(1500, chunk_steps=250)
+    expected = reference.advance(p, start, 1500, step0=2**33 + 3)
+    assert np.count_nonzero(expected["log_stretch"]) > 30  # the checks did renormalise
+    _assert_reference(ens.state(), expected, device)
+
+
+def test_a_chunk_of_2_to_the_32_steps_is_split_into_launches_not_dropped(monkeypatch):
+    """Issue 13.1: 2^32 steps in one chunk once ran as 0 (the kernel's step count is 32-bit).
+
+    The launches are recorded instead of run (2^32 real steps would take minutes): they must
+    cover every step, from consecutive global steps, each within the kernel's 32-bit counter.
+    """
+    launches = []
+    monkeypatch.setattr(
+        Ensemble, "_launch", lambda self, lo, hi, step0, steps: launches.append((lo, hi, step0, steps))
+    )
+    ens = _ensemble(MapParams(3.0, 0.1, 0.01), n=8, threads=1)
+    ens.run(2**32 + 5, chunk_steps=2**32 + 5)
+    assert ens.step == 2**32 + 5
+    assert sum(steps for *_, steps in launches) == 2**32 + 5
+    assert all(0 < steps <= kernels.MAX_LAUNCH_STEPS < 2**31 for *_, steps in launches)
+    assert [step0 for _, _, step0, _ in launches] == [0, *np.cumsum([s for *_, s in launches])[:-1]]
+    assert {(lo, hi) for lo, hi, *_ in launches} == {(0, 8)}
+
+
+def test_a_launch_refuses_a_step_count_it_cannot_carry():
+    ens = _ensemble(MapParams(3.0, 0.1, 0.01), n=8, threads=1)
+    arrays = [ens._arrays[name] for name in FIELDS]
+    message = r"steps = 2147483648 is outside the allowed range 0 <= steps <= 2147483647"
+    with pytest.raises(ValueError, match=message):
+        kernels.advance_map.launch("cpu", arrays, [], 0, 2**31, ens.params)
+
+
+def _advance_arrays(kernel, body, p, x, q, step0, steps, extra_fields=0):
+    """Advance fresh state arrays (tangent (1, 0)) with ``kernel`` on one step body on the CPU."""
+    state = Ensemble(p, x, q, threads=1).state()
+    arrays = [wp.array(state[name], dtype=wp.int64 if name == "winding" else wp.float64) for name in FIELDS]
+    extra = [wp.zeros(x.size, dtype=wp.float64) for _ in range(extra_fields)]
+    kernel.launch("cpu", arrays, extra, step0, steps, p, body=body)
+    return [a.numpy() for a in arrays + extra]
+
+
+@pytest.mark.parametrize(
+    ("kernel", "extra_fields"),
+    [(kernels.advance_map, 0), (kernels.advance_map_indicators, 3)],
+    ids=["advance_map", "advance_map_indicators"],
+)
+@pytest.mark.parametrize("p", CASES, ids=lambda p: f"K{p.K:.4g}-b{p.b1:g}-{p.b2:g}")
+def test_cpu_and_portable_step_bodies_agree_bit_for_bit(kernel, extra_fields, p):
+    """The CPU body (vector C++) and the portable Warp body (what CUDA runs) on the same CPU.
+
+    1003 points (not a multiple of the 32 lanes, so a thread has lanes past the end) x 1200
+    steps from global step 3; every state field and every indicator accumulator must agree.
+    """
+    x, q = _start(p, n=1003)
+    step0 = 0 if extra_fields else 3  # the indicators start at global step 0
+    cpu = _advance_arrays(kernel, "cpu", p, x, q, step0, 1200, extra_fields)
+    portable = _advance_arrays(kernel, "portable", p, x, q, step0, 1200, extra_fields)
+    for name, a, b in zip([*FIELDS, "extra0", "extra1", "extra2"], cpu, portable, strict=False):
+        np.testing.assert_array_equal(a, b, err_msg=name)
+    if p in CASES[:4]:  # chaotic enough that the renormalisation branch ran on both bodies
+        assert np.count_nonzero(cpu[FIELDS.index("log_stretch")]) > 100
+
+
+# A variant that uses the step's facts: per point, the steps that ended in B and the whole units
+# gained, summed in the kernel (the pattern of return times and flights, issue 16).
+@wp.struct
+class _FactArrays:
+    visits: wp.array(dtype=wp.float64)
+    gained: wp.array(dtype=wp.float64)
+
+
+@wp.struct
+class _FactSums:
+    visits: kernels.step.LaneVector
+    gained: kernels.step.LaneVector
+
+
+@wp.func
+def _load_sums(arrays: _FactArrays, first: int, spacing: int, n: int):
+    acc = _FactSums()
+    acc.visits = kernels.step.load_lane_vector(arrays.visits, first, spacing, n)
+    acc.gained = kernels.step.load_lane_vector(arrays.gained, first, spacing, n)
+    return acc
+
+
+@wp.func
+def _store_sums(arrays: _FactArrays, acc: _FactSums, first: int, spacing: int, n: int):
+    kernels.step.store_lane_vector(arrays.visits, acc.visits, first, spacing, n)
+    kernels.step.store_lane_vector(arrays.gained, acc.gained, first, spacing, n)
+
+
+@wp.func
+def _add_facts(acc: wp.ref[_FactSums], s: wp.ref[kernels.Lanes], global_step: wp.int64):
+    for k in range(wp.static(kernels.INTERLEAVE)):
+        acc.visits[k] = acc.visits[k] + s.in_strip[k]
+        acc.gained[k] = acc.gained[k] + s.gain[k]
+
+
+@wp.func
+def _no_check(acc: wp.ref[_FactSums], s: wp.ref[kernels.Lanes], check: wp.int64):
+    pass
+
+
+_FACTS = kernels.advance_kernel(
+    kernels.Variant("test_facts", _FactArrays, _FactSums, _load_sums, _store_sums, _add_facts, _no_check),
+    module_suffix=".test_facts",
+)
+
+
+@pytest.mark.parametrize("body", ["cpu", "portable"])
+def test_a_variant_sees_each_steps_gain_and_whether_it_ended_in_the_strip(body):
+    """The facts a variant gets per step, against the NumPy twin stepped one step at a time."""
+    p = MapParams(3.0, 0.1, 0.01)
+    x, q = _start(p, n=333)
+    steps = 300
+    got = _advance_arrays(_FACTS, body, p, x, q, 5, steps, extra_fields=2)
+    state = Ensemble(p, x, q, threads=1).state()
+    visits, gained = np.zeros(x.size), np.zeros(x.size)
+    for s in range(steps):
+        after = reference.advance(p, state, 1, step0=5 + s)
+        visits += (after["x"] <= p.b1) | (after["x"] >= 1.0 - p.b2)
+        gained += after["winding"] - state["winding"]
+        state = after
+    assert 0 < visits.sum() < visits.size * steps and np.count_nonzero(gained) > 0
+    np.testing.assert_array_equal(got[6], visits)
+    np.testing.assert_array_equal(got[7], gained)
+    np.testing.assert_array_equal(got[FIELDS.index("winding")], state["winding"])
+
+
+def test_portable_kernels_compile_for_cuda(tmp_path):
+    """What runs on CUDA compiles for CUDA (NVRTC, no GPU needed); the CPU body is never built for it."""
+    runtime = wp._src.context.runtime
+    archs = sorted(getattr(runtime, "nvrtc_supported_archs", None) or [])
+    if not archs:
+        pytest.skip("Warp has no NVRTC on this machine (CUDA-enabled warp-lang needed)")
+    arch = 86 if 86 in archs else archs[-1]
+    module = kernels.advance_map.portable.module
+    assert module is kernels.advance_map_indicators.portable.module
+    assert module is not kernels.advance_map.cpu.module
+    (artifact,) = wp.compile_aot_module(module, arch=arch, module_dir=tmp_path)
+    assert artifact.stat().st_size > 0
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_renormalisation_was_exercised_and_matches_every_step_normalisation(device):
     """Threshold renormalisation (every 8 steps, |dx| > 1e100) against the textbook per-step one."""
     p = MapParams(3.0, 0.05, 0.02)
-    ens = _ensemble(p, n=400)
+    ens = _ensemble(p, n=400, device=device)
     start = ens.state()
     ens.run(2000)
     got = ens.state()
@@ -58,7 +241,8 @@ def test_renormalisation_was_exercised_and_matches_every_step_normalisation():
     assert np.abs(ftle[~chaotic] - ftle_textbook[~chaotic]).max() < 1e-12
 
 
-def test_tangent_map_has_unit_determinant_in_the_kernel():
+@pytest.mark.parametrize("device", DEVICES)
+def test_tangent_map_has_unit_determinant_in_the_kernel(device):
     """det DM = 1: propagate (1, 0) and (0, 1) one step with the kernel, form the 2x2 matrix."""
     p = MapParams(3.0, 0.1, 0.05)
     x = np.linspace(0, 1, 2001, endpoint=False)
@@ -67,7 +251,7 @@ def test_tangent_map_has_unit_determinant_in_the_kernel():
         ens = Ensemble(p, x, np.full_like(x, 0.3))
         st = ens.state()
         st["dx"][:], st["dp"][:] = tangent
-        ens = Ensemble.from_state(p, st, 0)
+        ens = Ensemble.from_state(p, st, 0, device=device)
         ens.run(1)
         columns.append((ens.array("dx").copy(), ens.array("dp").copy()))
     (a, c), (b, d) = columns
@@ -76,12 +260,16 @@ def test_tangent_map_has_unit_determinant_in_the_kernel():
     np.testing.assert_array_equal(np.stack([[a, b], [c, d]]).transpose(2, 0, 1), p.jacobian(x))
 
 
-def test_results_do_not_depend_on_thread_count_or_chunking():
-    """Bitwise identical for 1, 2 and 3 threads, any chunk length, and a run split in pieces."""
+@pytest.mark.parametrize("device", DEVICES)
+def test_results_do_not_depend_on_thread_count_or_chunking(device):
+    """Bitwise identical for 1, 2 and 3 threads, any chunk length, and a run split in pieces.
+
+    (On a GPU the CPU thread count does not apply; the chunkings still must not matter.)
+    """
     p = MapParams(3.0, 0.1, 0.01)
 
     def final(threads, pieces, chunk):
-        ens = Ensemble.sample(p, 1001, "torus", seed=5, threads=threads)
+        ens = Ensemble.sample(p, 1001, "torus", seed=5, threads=threads, device=device)
         for steps in pieces:
             ens.run(steps, chunk_steps=chunk)
         return ens.state()
@@ -93,28 +281,25 @@ def test_results_do_not_depend_on_thread_count_or_chunking():
             np.testing.assert_array_equal(values, other[name], err_msg=f"{name} threads={threads}")
 
 
-def test_momentum_keeps_full_precision_far_from_the_origin():
+@pytest.mark.parametrize("device", DEVICES)
+def test_momentum_keeps_full_precision_far_from_the_origin(device):
     """An accelerator-mode point gains one unit per step; after 10^5 steps p ~ 1e5 and x is still exact."""
     p = MapParams(3.0, 0.1, 0.01)
     (x0,) = [x for w, x in theory.accelerator_modes(p) if w == 1]
     # Off the fixed point (p0 = 0.02): an orbit inside the L island, rotating around it.
-    ens = Ensemble(p, np.array([x0]), np.array([0.02]), threads=1)
+    ens = Ensemble(p, np.array([x0]), np.array([0.02]), threads=1, device=device)
     ens.run(100_000)
     assert ens.momentum()[0] == pytest.approx(0.02 + 100_000, abs=0.2)
     assert 0.0 <= ens.array("x")[0] < 1.0
 
 
-def test_state_is_56_bytes_per_point():
-    ens = Ensemble.sample(MapParams(3.0, 0.1, 0.01), 10, "torus")
+@pytest.mark.parametrize("device", DEVICES)
+def test_state_is_56_bytes_per_point(device):
+    ens = Ensemble.sample(MapParams(3.0, 0.1, 0.01), 10, "torus", device=device)
     assert sum(ens.array(name).itemsize for name in ens.state()) == 56
 
 
 def _devices():
-    import warp as wp
-
-    from warpratchet.kernels import init_warp
-
-    init_warp()
     return [str(d) for d in wp.get_devices()]
 
 
@@ -122,9 +307,8 @@ def _devices():
 def test_every_warp_device_gives_the_reference_result(device):
     """The same kernel on every device Warp sees (``cpu`` here; ``cuda:N`` where a GPU exists).
 
-    The CPU build does not contract ``a*b + c`` into FMAs, so it is bitwise equal to NumPy. nvcc
-    contracts by default; a last-bit difference then grows like the Lyapunov exponent, so on a
-    GPU the comparison is over 5 steps, to 1e-12.
+    Neither build contracts ``a*b + c`` into FMAs (``fuse_fp=False``), so the orbit is NumPy's bit
+    for bit; on a GPU the comparison is over 5 steps, to 1e-12, as a first sign of life.
     """
     p = MapParams(3.0, 0.1, 0.01)
     steps = 100 if device == "cpu" else 5
@@ -133,8 +317,20 @@ def test_every_warp_device_gives_the_reference_result(device):
     ens.run(steps)
     expected = reference.advance(p, start, steps)
     got = ens.state()
-    for name in ("x", "q", "winding", "dx", "dp", "log_stretch"):
+    for name in FIELDS:
         if device == "cpu":
             np.testing.assert_array_equal(got[name], expected[name], err_msg=name)
         else:
             np.testing.assert_allclose(got[name], expected[name], rtol=1e-12, atol=1e-12, err_msg=name)
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_indicator_kernel_matches_the_plain_kernel_and_runs_on_every_device(device):
+    """The indicators kernel leaves the orbit bitwise that of ``advance_map`` on each device."""
+    p = MapParams(3.0, 0.1, 0.01)
+    x, q = _start(p, n=500)
+    plain = Ensemble(p, x, q, device=device).run(700, chunk_steps=300).state()
+    ind = IndicatorEnsemble(p, x, q, device=device).run(700, chunk_steps=300)
+    for name in FIELDS:
+        np.testing.assert_array_equal(ind.state()[name], plain[name], err_msg=name)
+    assert np.all(np.isfinite(ind.indicators()["megno"]))

@@ -73,8 +73,12 @@ def sample_strip(params: MapParams, n: int, rng: np.random.Generator) -> tuple[n
     B is ``-b2 <= x <= b1`` (mod 1), ``0 <= p < 1``: the ensemble of Figs. 2 and 7-9.
     Returns ``(x, p)``, each of shape ``(n,)``, in ``[0, 1)``.
     """
-    x = np.mod(-params.b2 + params.b * rng.random(n), 1.0)
-    return x, rng.random(n)
+    return _strip_x(params, rng.random(n)), rng.random(n)
+
+
+def _strip_x(params: MapParams, u: np.ndarray) -> np.ndarray:
+    """Positions in B from uniform ``u`` in [0, 1)."""
+    return np.mod(-params.b2 + params.b * u, 1.0)
 
 
 def sample_torus(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -90,10 +94,12 @@ def grid_nodes(side: int) -> tuple[np.ndarray, np.ndarray]:
     the regions of Appendix B. Row-major in ``p``: node ``(i, j)`` is element ``j * G + i``.
     """
     side = check_count("grid", side, 1)
-    x_axis = (np.arange(side) + GRID_OFFSET) / side
-    p_axis = (np.arange(side) + GRID_P_OFFSET) / side
-    x, p = np.meshgrid(x_axis, p_axis, indexing="xy")
+    x, p = np.meshgrid(*_grid_axes(side), indexing="xy")
     return x.ravel(), p.ravel()
+
+
+def _grid_axes(side: int) -> tuple[np.ndarray, np.ndarray]:
+    return (np.arange(side) + GRID_OFFSET) / side, (np.arange(side) + GRID_P_OFFSET) / side
 
 
 def sample_grid(n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -102,6 +108,45 @@ def sample_grid(n: int) -> tuple[np.ndarray, np.ndarray]:
     if side < 1:
         raise ValueError(f"points = {n!r} is too few for a grid (need at least 1)")
     return grid_nodes(side)
+
+
+#: Points built at a time: an ensemble's temporaries stay a few MB whatever its size.
+_BUILD_CHUNK = 1 << 18
+
+
+def _sampled_chunks(params: MapParams, init: str, points: int, seed: int):
+    """``(n, chunks)``: the ``n`` points of a named sampler as consecutive ``(lo, x, p)`` chunks.
+
+    Bitwise the points of :func:`sample_strip`, :func:`sample_torus` (``default_rng(seed)``) and
+    :func:`sample_grid`, without their full-size arrays: x takes the generator's first ``points``
+    doubles and p the next ``points``, so p comes from a second generator advanced by ``points``
+    draws (one 64-bit draw per double); grid nodes are looked up on their axes.
+    """
+    if init == "grid":
+        side = math.isqrt(points)
+        if side < 1:
+            raise ValueError(f"points = {points!r} is too few for a grid (need at least 1)")
+        x_axis, p_axis = _grid_axes(side)
+        n = side * side
+
+        def grid():
+            for lo in range(0, n, _BUILD_CHUNK):
+                node = np.arange(lo, min(n, lo + _BUILD_CHUNK))
+                yield lo, x_axis[node % side], p_axis[node // side]
+
+        return n, grid()
+    if init not in SAMPLERS:
+        raise ValueError(f"init = {init!r} is not one of {', '.join(SAMPLERS)}")
+    rng_x = np.random.default_rng(seed)
+    rng_p = np.random.default_rng(seed)
+    rng_p.bit_generator.advance(points)
+
+    def uniform():
+        for lo in range(0, points, _BUILD_CHUNK):
+            u = rng_x.random(min(_BUILD_CHUNK, points - lo))
+            yield lo, (_strip_x(params, u) if init == "strip" else u), rng_p.random(u.size)
+
+    return points, uniform()
 
 
 def default_threads() -> int:
@@ -148,33 +193,61 @@ class Ensemble:
         threads: int | None = None,
         sampler: str = "user",
         seed: int | None = None,
+        _chunks=None,
     ) -> None:
-        x0 = np.asarray(x0, dtype=np.float64)
-        p0 = np.asarray(p0, dtype=np.float64)
-        if x0.ndim != 1 or x0.shape != p0.shape:
-            raise ValueError(
-                f"x0 and p0 must be 1-D arrays of equal length; got shapes {x0.shape}, {p0.shape}"
+        # _chunks (internal, from sample): (n, iterable of (lo, x, p)) instead of x0 and p0.
+        if _chunks is None:
+            x0 = np.asarray(x0, dtype=np.float64)
+            p0 = np.asarray(p0, dtype=np.float64)
+            if x0.ndim != 1 or x0.shape != p0.shape:
+                raise ValueError(
+                    f"x0 and p0 must be 1-D arrays of equal length; got shapes {x0.shape}, {p0.shape}"
+                )
+            if x0.size == 0:
+                raise ValueError("an ensemble needs at least 1 point; got 0")
+            if not (np.all(np.isfinite(x0)) and np.all(np.isfinite(p0))):
+                raise ValueError("x0 and p0 must be finite")
+            if np.any(np.abs(p0) >= 2.0**52):
+                raise ValueError("|p0| must be below 2^52 so that p0 mod 1 is exact")
+            step = _BUILD_CHUNK
+            _chunks = (
+                x0.size,
+                ((lo, x0[lo : lo + step], p0[lo : lo + step]) for lo in range(0, x0.size, step)),
             )
-        if x0.size == 0:
-            raise ValueError("an ensemble needs at least 1 point; got 0")
-        if not (np.all(np.isfinite(x0)) and np.all(np.isfinite(p0))):
-            raise ValueError("x0 and p0 must be finite")
-        if np.any(np.abs(p0) >= 2.0**52):
-            raise ValueError("|p0| must be below 2^52 so that p0 mod 1 is exact")
-        whole = np.floor(p0)
-        state = {
-            "x": np.mod(x0, 1.0),
-            "q": p0 - whole,
-            "winding": np.zeros(x0.size, dtype=np.int64),
-            "p0": p0.copy(),
-            "dx": np.ones_like(x0),
-            "dp": np.zeros_like(x0),
-            "log_stretch": np.zeros_like(x0),
-        }
-        state["x"][state["x"] >= 1.0] = 0.0  # mod of a tiny negative number rounds to 1
-        self._setup(params, state, 0, device, threads, sampler, seed)
+        points, chunks = _chunks
+        self._setup(params, points, 0, device, threads, sampler, seed)
+        for lo, x, p in chunks:
+            self._fill(lo, x, p)
 
-    def _setup(self, params, state, step, device, threads, sampler, seed) -> None:
+    def _fill(self, lo: int, x0: np.ndarray, p0: np.ndarray) -> None:
+        """The initial state of points ``lo, lo + 1, ...`` from their positions and momenta."""
+        x = np.mod(x0, 1.0)
+        x[x >= 1.0] = 0.0  # mod of a tiny negative number rounds to 1
+        initial = {
+            "x": x,
+            "q": p0 - np.floor(p0),
+            "winding": 0,
+            "p0": p0,
+            "dx": 1.0,
+            "dp": 0.0,
+            "log_stretch": 0.0,
+        }
+        for name, values in initial.items():
+            self._put(name, lo, values, x.size)
+
+    def _put(self, name: str, lo: int, values, count: int) -> None:
+        """Write ``values`` (``count`` of them, or one scalar for all) into ``name[lo : lo + count]``.
+
+        Through a host array of ``count`` elements, on every device: callers pass chunks, so no
+        full-size temporary is made.
+        """
+        dtype = np.int64 if name == "winding" else np.float64
+        host = np.ascontiguousarray(np.broadcast_to(np.asarray(values, dtype=dtype), (count,)))
+        source = wp.array(host, dtype=self._arrays[name].dtype, device="cpu", copy=False)
+        wp.copy(self._arrays[name], source, dest_offset=lo, count=count)
+
+    def _setup(self, params, points, step, device, threads, sampler, seed) -> None:
+        """Everything but the state, which is allocated here (uninitialised) and filled by the caller."""
         kernels.init_warp()
         self.params = params
         try:
@@ -188,16 +261,11 @@ class Ensemble:
         self.sampler = sampler
         self.seed = seed
         self.step = int(step)
-        n = state["x"].size
         self._arrays = {
-            name: wp.array(
-                np.ascontiguousarray(state[name]),
-                dtype=wp.int64 if name == "winding" else wp.float64,
-                device=self.device,
-            )
+            name: wp.empty(points, dtype=wp.int64 if name == "winding" else wp.float64, device=self.device)
             for name in STATE_FIELDS
         }
-        self.points = n
+        self.points = points
 
     # -- construction -----------------------------------------------------------------------
     @classmethod
@@ -218,14 +286,12 @@ class Ensemble:
         points = check_count("points", points, 1)
         seed = check_count("seed", seed, 0)
         check_choice("init", init, SAMPLERS)
-        rng = np.random.default_rng(seed)
-        if init == "strip":
-            x, p = sample_strip(params, points, rng)
-        elif init == "torus":
-            x, p = sample_torus(points, rng)
-        else:
-            x, p = sample_grid(points)
-        return cls(params, x, p, device=device, threads=threads, sampler=init, seed=seed)
+        # Built chunk by chunk into the state (the same points as sample_strip, sample_torus and
+        # sample_grid): no full-size temporaries, so 10^8 points need little more than their state.
+        chunks = _sampled_chunks(params, init, points, seed)
+        return cls(
+            params, None, None, device=device, threads=threads, sampler=init, seed=seed, _chunks=chunks
+        )
 
     @classmethod
     def from_state(
@@ -247,7 +313,12 @@ class Ensemble:
         if len(sizes) != 1 or len(next(iter(sizes))) != 1:
             raise ValueError(f"state fields must be 1-D arrays of one length; got shapes {sizes}")
         obj = cls.__new__(cls)
-        obj._setup(params, state, step, device, threads, sampler, seed)
+        obj._setup(params, len(state["x"]), step, device, threads, sampler, seed)
+        for name in STATE_FIELDS:
+            values = np.asarray(state[name])
+            for lo in range(0, obj.points, _BUILD_CHUNK):
+                chunk = values[lo : lo + _BUILD_CHUNK]
+                obj._put(name, lo, chunk, chunk.size)
         return obj
 
     # -- access -------------------------------------------------------------------------------
@@ -275,37 +346,28 @@ class Ensemble:
         """Arrays passed to :attr:`_kernel` after the state arrays, shape ``(points,)`` each."""
         return []
 
-    def _launch(self, lo: int, hi: int, steps: int) -> None:
-        p = self.params
-        arrays = [self._arrays[name] for name in _KERNEL_FIELDS] + self._extra_arrays()
-        wp.launch(
-            self._kernel,
-            dim=kernels.launch_dim(hi - lo),
-            inputs=[
-                *(a[lo:hi] for a in arrays),
-                hi - lo,
-                self.step,
-                steps,
-                p.K,
-                p.b1,
-                1.0 - p.b2,
-                p.l1,
-                p.l2,
-                p.c,
-            ],
-            device=self.device,
+    def _launch(self, lo: int, hi: int, step0: int, steps: int) -> None:
+        arrays = [self._arrays[name] for name in _KERNEL_FIELDS]
+        extra = self._extra_arrays()
+        self._kernel.launch(
+            self.device, [a[lo:hi] for a in arrays], [a[lo:hi] for a in extra], step0, steps, self.params
         )
 
     def _advance(self, steps: int, pool: ThreadPoolExecutor | None) -> None:
-        if pool is None:
-            self._launch(0, self.points, steps)
-            wp.synchronize_device(self.device)
-        else:
-            bounds = np.linspace(0, self.points, self.threads + 1).astype(int)
-            shards = [(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
-            for future in [pool.submit(self._launch, lo, hi, steps) for lo, hi in shards]:
-                future.result()
-        self.step += steps
+        # One launch advances at most MAX_LAUNCH_STEPS (its loop counter is 32-bit): a longer
+        # chunk is split, so that no step is dropped.
+        while steps > 0:
+            todo = min(steps, kernels.MAX_LAUNCH_STEPS)
+            if pool is None:
+                self._launch(0, self.points, self.step, todo)
+                wp.synchronize_device(self.device)
+            else:
+                bounds = np.linspace(0, self.points, self.threads + 1).astype(int)
+                shards = [(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
+                for future in [pool.submit(self._launch, lo, hi, self.step, todo) for lo, hi in shards]:
+                    future.result()
+            self.step += todo
+            steps -= todo
 
     #: Why the state cannot be trusted (set when an error stopped a chunk partway), else None.
     undefined: str | None = None
@@ -363,11 +425,12 @@ class Ensemble:
             observers.insert(0, ProgressBar(notebook=True))
         if chunk_steps is None:
             chunk_steps = default_chunk_steps(self.points)
-        # The kernel counts a launch's steps in a 32-bit int: a longer chunk would run fewer steps.
+        # Launches split longer chunks, but a chunk is also the unit of progress, checkpoints and
+        # Ctrl-C: one of more than 2^31 steps is never what a user meant.
         chunk_steps = check_count("chunk_steps", chunk_steps, 1, MAX_CHUNK_STEPS)
         try:
             # Compile (or load from cache) before any thread launches.
-            wp.load_module(kernels, device=self.device)
+            self._kernel.load(self.device)
             use_pool = wp.get_device(self.device).is_cpu and self.threads > 1 and self.points > 1
             pool = ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet") if use_pool else None
             run_chunks(self, self.step + steps, observers, chunk_steps, pool)

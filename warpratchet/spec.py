@@ -53,8 +53,9 @@ CLASSIFIERS = ("ftle", "megno", "fli")
 #: threads than cores buy nothing, and no single machine today has 4096 hardware threads. Without
 #: a bound, ``threads = 10**9`` ran for 75 s and took 15.8 GB before failing (issue 13).
 MAX_THREADS = 4096
-#: Upper bound of ``chunk_steps``: the kernel counts the steps of one launch in a 32-bit int, so
-#: a longer chunk would silently run fewer steps (issue 13, item 1).
+#: Upper bound of ``chunk_steps``. Launches split longer chunks (a launch counts its steps in a
+#: 32-bit int; issue 13, item 1), but a chunk is also the unit of progress, checkpoints and
+#: Ctrl-C, and one of more than 2^31 steps is never what a user meant.
 MAX_CHUNK_STEPS = 2**31 - 1
 #: Counts are stored as int64 (HDF5 attributes, sweep columns).
 _INT64_MAX = 2**63 - 1

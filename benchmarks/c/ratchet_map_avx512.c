@@ -1,0 +1,162 @@
+/*
+ * Hand-vectorised AVX-512 twin of warpratchet.kernels.advance_map, for benchmarks/throughput.py:
+ * the CPU's ceiling for the project's exact arithmetic, against which warpratchet is measured.
+ *
+ * Same operations, in the same order and with the same roundings, as warpratchet.kernels.step
+ * (and as the plain twin ratchet_map.c), so that the end state is bitwise warpratchet's:
+ *
+ *   force f of Eq. (fx) and K*f' by two masked blends each (the pieces x <= b1, x < 1 - b2, else);
+ *   t = q + K f;  floor(t) by one vrndscalepd;  q = t - floor(t), folded to 0 (one more whole
+ *   unit) if it rounded up to 1;  x = x + q, minus 1 if >= 1;
+ *   tangent dp' = dp + (K f') dx, dx' = dx + dp';
+ *   after every global step that is a multiple of RENORM_CHECK_EVERY, a tangent with
+ *   |dx| > RENORM_THRESHOLD is divided by its norm and log(norm) (the C library's) is booked.
+ *
+ * K f' is taken from the three products K*l1, -K, K*l2 (the roundings of the scalar K*slope), as
+ * warpratchet's CPU body does. Each OpenMP thread takes blocks of NV independent 8-wide vectors
+ * (NV*8 points), whose dependency chains hide each other's latencies; NV = 6 and 8 are both
+ * built and the faster is reported. Compile with -ffp-contract=off (no FMA contraction: NumPy
+ * and warpratchet round a*b + c twice).
+ *
+ * Built at run time by throughput.py with
+ *   gcc -O3 -march=native -fopenmp -ffp-contract=off -DNV=<6|8> -DRENORM_THRESHOLD=... \
+ *       -DRENORM_CHECK_EVERY=... -fPIC -shared
+ */
+#include <immintrin.h>
+#include <math.h>
+#include <stdint.h>
+#include <string.h>
+
+#ifndef __AVX512F__
+#error "needs a CPU with AVX-512F (compile with -march=native on one)"
+#endif
+#ifndef NV
+#error "compile with -DNV=<vectors per block>"
+#endif
+#ifndef RENORM_THRESHOLD
+#error "compile with -DRENORM_THRESHOLD=<warpratchet.kernels.RENORM_THRESHOLD>"
+#endif
+#ifndef RENORM_CHECK_EVERY
+#error "compile with -DRENORM_CHECK_EVERY=<warpratchet.kernels.RENORM_CHECK_EVERY>"
+#endif
+
+#define BLOCK (8 * NV)
+
+typedef struct {
+    __m512d K, b1, right, l1, l2, c, k_left, k_middle, k_right;
+} map_t;
+
+/* |dx| > threshold in some lane: renormalise those lanes (the rare path; log lane by lane). */
+static void renormalise(__mmask8 big, __m512d *dx, __m512d *dp, __m512d *lsum)
+{
+    double a[8], b[8], l[8];
+    _mm512_storeu_pd(a, *dx);
+    _mm512_storeu_pd(b, *dp);
+    _mm512_storeu_pd(l, *lsum);
+    for (int k = 0; k < 8; k++) {
+        if (big >> k & 1) {
+            const double h = sqrt(a[k] * a[k] + b[k] * b[k]);
+            l[k] = l[k] + log(h);
+            a[k] = a[k] / h;
+            b[k] = b[k] / h;
+        }
+    }
+    *dx = _mm512_loadu_pd(a);
+    *dp = _mm512_loadu_pd(b);
+    *lsum = _mm512_loadu_pd(l);
+}
+
+/* Advance the BLOCK points at x..lsum (w: whole units gained, float64) by `steps` iterations. */
+static void advance_block(const map_t *m, int64_t step0, int64_t steps, double *x, double *q, double *w,
+                          double *dx, double *dp, double *lsum)
+{
+    const __m512d one = _mm512_set1_pd(1.0), zero = _mm512_setzero_pd();
+    const __m512d threshold = _mm512_set1_pd(RENORM_THRESHOLD);
+    __m512d X[NV], Q[NV], W[NV], DX[NV], DP[NV], L[NV];
+    for (int v = 0; v < NV; v++) {
+        X[v] = _mm512_loadu_pd(x + 8 * v);
+        Q[v] = _mm512_loadu_pd(q + 8 * v);
+        W[v] = _mm512_loadu_pd(w + 8 * v);
+        DX[v] = _mm512_loadu_pd(dx + 8 * v);
+        DP[v] = _mm512_loadu_pd(dp + 8 * v);
+        L[v] = _mm512_loadu_pd(lsum + 8 * v);
+    }
+    for (int64_t s = 0; s < steps; s++) {
+        for (int v = 0; v < NV; v++) {
+            const __m512d xv = X[v];
+            const __mmask8 in_left = _mm512_cmp_pd_mask(xv, m->b1, _CMP_LE_OQ);
+            const __mmask8 in_middle = _mm512_cmp_pd_mask(xv, m->right, _CMP_LT_OQ);
+            /* Eq. (fx): l1 x | c - x | l2 (x - 1), and K f' */
+            const __m512d f_right = _mm512_mul_pd(m->l2, _mm512_sub_pd(xv, one));
+            __m512d f = _mm512_mask_blend_pd(in_middle, f_right, _mm512_sub_pd(m->c, xv));
+            f = _mm512_mask_blend_pd(in_left, f, _mm512_mul_pd(m->l1, xv));
+            __m512d k_slope = _mm512_mask_blend_pd(in_middle, m->k_right, m->k_middle);
+            k_slope = _mm512_mask_blend_pd(in_left, k_slope, m->k_left);
+            const __m512d t = _mm512_add_pd(Q[v], _mm512_mul_pd(m->K, f));
+            const __m512d fl = _mm512_roundscale_pd(t, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC);
+            const __m512d frac = _mm512_sub_pd(t, fl);
+            /* t just below an integer: t - floor(t) rounds to 1, fold it to 0 and one more unit */
+            const __mmask8 wrap = _mm512_cmp_pd_mask(frac, one, _CMP_GE_OQ);
+            Q[v] = _mm512_mask_blend_pd(wrap, frac, zero);
+            W[v] = _mm512_add_pd(_mm512_add_pd(W[v], fl), _mm512_maskz_mov_pd(wrap, one));
+            const __m512d xq = _mm512_add_pd(xv, Q[v]);
+            X[v] = _mm512_mask_sub_pd(xq, _mm512_cmp_pd_mask(xq, one, _CMP_GE_OQ), xq, one);
+            DP[v] = _mm512_add_pd(DP[v], _mm512_mul_pd(k_slope, DX[v]));
+            DX[v] = _mm512_add_pd(DX[v], DP[v]);
+        }
+        if (((uint64_t)(step0 + s + 1) & (RENORM_CHECK_EVERY - 1)) == 0) {
+            for (int v = 0; v < NV; v++) {
+                const __mmask8 big = _mm512_cmp_pd_mask(_mm512_abs_pd(DX[v]), threshold, _CMP_GT_OQ);
+                if (big)
+                    renormalise(big, &DX[v], &DP[v], &L[v]);
+            }
+        }
+    }
+    for (int v = 0; v < NV; v++) {
+        _mm512_storeu_pd(x + 8 * v, X[v]);
+        _mm512_storeu_pd(q + 8 * v, Q[v]);
+        _mm512_storeu_pd(w + 8 * v, W[v]);
+        _mm512_storeu_pd(dx + 8 * v, DX[v]);
+        _mm512_storeu_pd(dp + 8 * v, DP[v]);
+        _mm512_storeu_pd(lsum + 8 * v, L[v]);
+    }
+}
+
+/* The block of points [i, i + count) (count <= BLOCK), padded with copies of the last one. */
+static void advance_points(const map_t *m, int64_t step0, int64_t steps, int64_t i, int64_t count, double *x,
+                           double *q, int64_t *winding, double *dx, double *dp, double *lsum)
+{
+    double bx[BLOCK], bq[BLOCK], bw[BLOCK], bdx[BLOCK], bdp[BLOCK], bl[BLOCK];
+    for (int k = 0; k < BLOCK; k++) {
+        const int64_t j = i + (k < count ? k : count - 1);
+        bx[k] = x[j];
+        bq[k] = q[j];
+        bw[k] = 0.0;
+        bdx[k] = dx[j];
+        bdp[k] = dp[j];
+        bl[k] = lsum[j];
+    }
+    advance_block(m, step0, steps, bx, bq, bw, bdx, bdp, bl);
+    for (int k = 0; k < count; k++) {
+        x[i + k] = bx[k];
+        q[i + k] = bq[k];
+        winding[i + k] = winding[i + k] + (int64_t)bw[k]; /* whole units, exact below 2^53 */
+        dx[i + k] = bdx[k];
+        dp[i + k] = bdp[k];
+        lsum[i + k] = bl[k];
+    }
+}
+
+void advance_map(int64_t n, int64_t step0, int64_t steps, double K, double b1, double right, double l1, double l2,
+                 double c, double *x, double *q, int64_t *winding, double *dx, double *dp, double *lsum, int threads)
+{
+    const map_t m = {
+        _mm512_set1_pd(K), _mm512_set1_pd(b1), _mm512_set1_pd(right), _mm512_set1_pd(l1), _mm512_set1_pd(l2),
+        _mm512_set1_pd(c), _mm512_set1_pd(K * l1), _mm512_set1_pd(-K), _mm512_set1_pd(K * l2),
+    };
+#pragma omp parallel for schedule(dynamic, 16) num_threads(threads)
+    for (int64_t i = 0; i < n; i += BLOCK) {
+        const int64_t count = n - i < BLOCK ? n - i : BLOCK;
+        advance_points(&m, step0, steps, i, count, x, q, winding, dx, dp, lsum);
+    }
+}

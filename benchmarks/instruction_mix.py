@@ -1,0 +1,141 @@
+"""Instruction mix of the step loop of the compiled CPU kernels (issue 12: object-code evidence).
+
+Compiles (or loads from Warp's kernel cache) the CPU module of :mod:`warpratchet.kernels`,
+disassembles its object file with ``objdump -d`` and, for each kernel, finds the step loop: the
+innermost loop (a backward jump and its target) that contains the ``floor`` instruction
+(``vrndscalepd``, or ``vroundpd``/``roundsd`` on CPUs without AVX-512). Its instructions are
+counted by register width: packed 512-bit (``zmm``), 256-bit (``ymm``), 128-bit (``xmm``),
+scalar float (``...sd``/``...ss`` on ``xmm``), and the rest (integer, masks, branches); stack
+accesses (``(%rsp)``) count spills. ``points per pass`` is the lanes one pass of the loop
+advances (``INTERLEAVE``), so ``instructions per point-step`` compares kernels of any width.
+
+Usage::
+
+    python benchmarks/instruction_mix.py [--json]
+    python benchmarks/instruction_mix.py --object OLD.o --function advance_map_ --points 8
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import json
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+CLASSES = ("zmm", "ymm", "xmm", "scalar", "other")
+FLOOR = re.compile(r"rndscale|round")
+
+
+def _disassemble(obj: Path) -> dict[str, list[tuple[int, str, str]]]:
+    """``{function: [(address, mnemonic, operands), ...]}`` of an object file."""
+    text = subprocess.run(
+        ["objdump", "-d", "--no-show-raw-insn", str(obj)], capture_output=True, text=True
+    ).stdout
+    functions: dict[str, list[tuple[int, str, str]]] = {}
+    current = None
+    for line in text.splitlines():
+        head = re.match(r"^[0-9a-f]+ <(.+)>:", line)
+        if head:
+            current = functions.setdefault(head.group(1), [])
+            continue
+        insn = re.match(r"^\s+([0-9a-f]+):\s+(\S+)\s*(.*)$", line)
+        if insn and current is not None:
+            current.append((int(insn.group(1), 16), insn.group(2), insn.group(3)))
+    return functions
+
+
+def _kind(mnemonic: str, operands: str) -> str:
+    if "zmm" in operands:
+        return "zmm"
+    if "ymm" in operands:
+        return "ymm"
+    if "xmm" in operands:
+        return "scalar" if mnemonic.endswith(("sd", "ss")) else "xmm"
+    return "other"
+
+
+def step_loop_mix(code: list[tuple[int, str, str]]) -> dict[str, Any] | None:
+    """Counts for the innermost loop that contains a floor instruction (None if there is none)."""
+    loops = []
+    for address, mnemonic, operands in code:
+        target = re.match(r"([0-9a-f]+)", operands)
+        if mnemonic.startswith("j") and target and int(target.group(1), 16) <= address:
+            loops.append((int(target.group(1), 16), address))
+    with_floor = [
+        (hi - lo, lo, hi) for lo, hi in loops if any(lo <= a <= hi and FLOOR.search(m) for a, m, _ in code)
+    ]
+    if not with_floor:
+        return None
+    _, lo, hi = min(with_floor)
+    body = [(m, o) for a, m, o in code if lo <= a <= hi]
+    counts = collections.Counter(_kind(m, o) for m, o in body)
+    return {
+        "instructions": len(body),
+        **{k: counts.get(k, 0) for k in CLASSES},
+        "floor": sum(1 for m, _ in body if FLOOR.search(m)),
+        "stack_accesses": sum(1 for _, o in body if "(%rsp)" in o),
+    }
+
+
+def _warpratchet_object() -> tuple[Path, int]:
+    import warp as wp
+
+    from warpratchet import kernels
+
+    kernels.init_warp()
+    kernels.advance_map.load("cpu")
+    module = kernels.advance_map.cpu.module
+    (block_dim,) = {block_dim for _, block_dim in module.execs}  # the variant loaded on the CPU
+    build = Path(wp.config.kernel_cache_dir) / module.get_module_identifier(block_dim)
+    return max(build.glob("*.o"), key=lambda p: p.stat().st_mtime), kernels.INTERLEAVE
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="instruction_mix.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--object", type=Path, help="an object file (default: warpratchet's CPU kernels)")
+    parser.add_argument("--function", action="append", help="function name prefix (repeatable)")
+    parser.add_argument("--points", type=int, help="points one pass of the loop advances")
+    parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    args = parser.parse_args(argv)
+    if shutil.which("objdump") is None:
+        print("instruction_mix.py: objdump not found (binutils)", file=sys.stderr)
+        return 2
+    obj, points = (args.object, args.points or 1) if args.object else _warpratchet_object()
+    prefixes = args.function or ["advance_map_", "advance_map_indicators_"]
+    functions = _disassemble(obj)
+    rows = {}
+    for prefix in prefixes:
+        # Warp names a kernel's CPU entry point <kernel>_<hash>_cpu_forward.
+        entry = re.compile(re.escape(prefix) + r"[0-9a-f]+_cpu_forward$")
+        name = next((f for f in functions if entry.match(f)), None)
+        if name is None:
+            continue
+        mix = step_loop_mix(functions[name])
+        if mix is not None:
+            mix["points_per_pass"] = points
+            mix["instructions_per_point_step"] = mix["instructions"] / points
+            rows[prefix] = {"function": name, **mix}
+    if args.json:
+        print(json.dumps({"object": str(obj), "step_loops": rows}))
+        return 0
+    print(f"Step loops of {obj}")
+    head = f"{'kernel':<26}{'instr':>6}" + "".join(f"{k:>7}" for k in CLASSES) + f"{'floor':>7}{'spills':>8}"
+    head += f"{'points':>8}{'instr/pt-step':>15}"
+    print(head)
+    for prefix, row in rows.items():
+        print(
+            f"{prefix.rstrip('_'):<26}{row['instructions']:>6}"
+            + "".join(f"{row[k]:>7}" for k in CLASSES)
+            + f"{row['floor']:>7}{row['stack_accesses']:>8}{row['points_per_pass']:>8}"
+            + f"{row['instructions_per_point_step']:>15.1f}"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

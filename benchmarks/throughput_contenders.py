@@ -1,0 +1,313 @@
+"""The rows of ``throughput.py``: one advance function per implementation and thread count.
+
+Every contender advances a copy of the same state by the same float64 arithmetic (see
+``throughput.py``) and returns its end state with the wall and CPU seconds the advancing took;
+nothing else is timed. Unavailable contenders (no Numba, no gcc, no AVX-512) carry a one-line reason instead.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import functools
+import math
+import shutil
+import subprocess
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from importlib.metadata import version
+from pathlib import Path
+
+import numpy as np
+
+from warpratchet import Ensemble, MapParams, reference
+from warpratchet.ensemble import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
+from warpratchet.sumrule import IndicatorEnsemble
+
+#: The benchmark's ensemble: strip B of Eq. (B), seed 1.
+INIT, SEED = "strip", 1
+#: State fields a run changes (p0 is read only), compared bit for bit.
+EVOLVED = ("x", "q", "winding", "dx", "dp", "log_stretch")
+
+C_DIR = Path(__file__).resolve().parent / "c"
+C_SOURCE = C_DIR / "ratchet_map.c"
+C_AVX512_SOURCE = C_DIR / "ratchet_map_avx512.c"
+C_FLAGS = ("-O3", "-march=native", "-fopenmp", "-ffp-contract=off")
+#: 8-wide vectors per block of the AVX-512 program; both are built, the faster counts.
+C_AVX512_VECTORS = (6, 8)
+
+State = dict[str, np.ndarray]
+
+
+@dataclass(frozen=True)
+class Timing:
+    """Wall seconds, and CPU seconds of the whole process (all its threads) in that time."""
+
+    seconds: float
+    cpu_seconds: float
+
+
+class _Clock:
+    """``with _Clock() as clock: ...`` then ``clock.timing``."""
+
+    def __enter__(self) -> _Clock:
+        self._wall, self._cpu = time.perf_counter(), time.process_time()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.timing = Timing(time.perf_counter() - self._wall, time.process_time() - self._cpu)
+
+
+#: ``advance(state, step0, steps) -> (new_state, timing)``: ``steps`` iterations of ``state``,
+#: which is at global step ``step0``. ``state`` is never modified and only the advancing itself is
+#: timed (copies in and out are not).
+Advance = Callable[[State, int, int], tuple[State, Timing]]
+
+
+@dataclass
+class Contender:
+    """One row of the table."""
+
+    key: str  # "numpy", "numba", "c", "c_avx512", "warpratchet", "warpratchet_indicators"
+    label: str
+    threads: int
+    advance: Advance | None  # None: unavailable
+    unavailable: str = ""
+    device: str = "cpu"  # Warp device of the warpratchet rows
+
+
+def _copy(state: State) -> State:
+    return {name: np.array(state[name], copy=True) for name in EVOLVED}
+
+
+# -- NumPy ------------------------------------------------------------------------------------------
+def numpy_contenders(params: MapParams) -> tuple[list[Contender], str]:
+    def advance(state: State, step0: int, steps: int) -> tuple[State, Timing]:
+        with _Clock() as clock:
+            out = reference.advance(params, state, steps, step0=step0)
+        return out, clock.timing
+
+    build = f"numpy {np.__version__}: warpratchet.reference.advance (vectorised over points, steps in Python)"
+    return [Contender("numpy", "NumPy", 1, advance)], build
+
+
+# -- Numba ------------------------------------------------------------------------------------------
+@functools.cache
+def _numba_advance() -> Callable[..., None]:
+    """The Numba twin of the kernel, compiled on first use (closure constants are frozen)."""
+    import numba
+
+    threshold = RENORM_THRESHOLD
+    every = RENORM_CHECK_EVERY
+
+    # fastmath=False (the default) keeps IEEE semantics: no FMA contraction, no reassociation.
+    @numba.njit(parallel=True, fastmath=False, error_model="numpy")
+    def advance(x, q, winding, dx, dp, lsum, step0, steps, K, b1, right, l1, l2, c):
+        for i in numba.prange(x.size):
+            xi, qi, dxi, dpi, si = x[i], q[i], dx[i], dp[i], lsum[i]
+            w = 0.0
+            for s in range(steps):
+                # Eq. (fx) and its slope
+                if xi <= b1:
+                    f = l1 * xi
+                    slope = l1
+                elif xi < right:
+                    f = c - xi
+                    slope = -1.0
+                else:
+                    f = l2 * (xi - 1.0)
+                    slope = l2
+                t = qi + K * f
+                fl = np.floor(t)  # math.floor would return an integer
+                qi = t - fl
+                wrap = qi >= 1.0
+                if wrap:
+                    qi = 0.0
+                w = w + fl + (1.0 if wrap else 0.0)
+                xi = xi + qi
+                if xi >= 1.0:
+                    xi = xi - 1.0
+                dpi = dpi + (K * slope) * dxi
+                dxi = dxi + dpi
+                if (step0 + s + 1) % every == 0 and abs(dxi) > threshold:
+                    h = math.sqrt(dxi * dxi + dpi * dpi)
+                    si = si + math.log(h)
+                    dxi = dxi / h
+                    dpi = dpi / h
+            x[i], q[i], dx[i], dp[i], lsum[i] = xi, qi, dxi, dpi, si
+            winding[i] = winding[i] + np.int64(w)
+
+    return advance
+
+
+def numba_contenders(params: MapParams, threads: list[int]) -> tuple[list[Contender], str]:
+    try:
+        import numba
+    except ImportError:
+        reason = "unavailable: numba is not installed (pip install 'warpratchet[bench]')"
+        return [Contender("numba", "Numba parallel", t, None, reason) for t in threads], reason
+    kernel = _numba_advance()
+    threads = [min(t, numba.config.NUMBA_NUM_THREADS) for t in threads]
+
+    def make(n_threads: int) -> Advance:
+        def advance(state: State, step0: int, steps: int) -> tuple[State, Timing]:
+            out = _copy(state)
+            numba.set_num_threads(n_threads)
+            with _Clock() as clock:
+                kernel(*(out[name] for name in EVOLVED), step0, steps, *_map_args(params))
+            return out, clock.timing
+
+        return advance
+
+    # Compile now (on a tiny copy) so that no measurement includes the JIT.
+    tiny = {name: np.zeros(16, dtype=np.int64 if name == "winding" else np.float64) for name in EVOLVED}
+    tiny["dx"][:] = 1.0
+    make(1)(tiny, 0, 16)
+    build = (
+        f"numba {numba.__version__}: @njit(parallel=True, fastmath=False), prange over points, "
+        f"threading layer {numba.threading_layer()}"
+    )
+    return [Contender("numba", "Numba parallel", t, make(t)) for t in threads], build
+
+
+# -- C: plain and hand-vectorised ------------------------------------------------------------------
+def _build_c(source: Path, library: Path, defines: tuple[str, ...] = ()) -> tuple[ctypes.CDLL | None, str]:
+    """Compile ``source`` into ``library``; ``(library, gcc version)`` or ``(None, reason)``."""
+    gcc = shutil.which("gcc")
+    if gcc is None:
+        return None, "unavailable: gcc not found on PATH"
+    gcc_version = subprocess.run([gcc, "-dumpfullversion"], capture_output=True, text=True).stdout.strip()
+    defines = (
+        *defines,
+        f"-DRENORM_THRESHOLD={RENORM_THRESHOLD!r}",
+        f"-DRENORM_CHECK_EVERY={RENORM_CHECK_EVERY}",
+    )
+    command = [gcc, *C_FLAGS, "-fPIC", "-shared", *defines, "-o", str(library), str(source), "-lm"]
+    done = subprocess.run(command, capture_output=True, text=True)
+    if done.returncode != 0:
+        first = (done.stderr.strip().splitlines() or ["(no output)"])[0]
+        return None, f"unavailable: gcc failed: {first}"
+    lib = ctypes.CDLL(str(library))
+    f64 = np.ctypeslib.ndpointer(dtype=np.float64, ndim=1, flags="C_CONTIGUOUS")
+    i64 = np.ctypeslib.ndpointer(dtype=np.int64, ndim=1, flags="C_CONTIGUOUS")
+    lib.advance_map.restype = None
+    lib.advance_map.argtypes = [*[ctypes.c_int64] * 3, *[ctypes.c_double] * 6, f64, f64, i64, f64, f64, f64]
+    lib.advance_map.argtypes += [ctypes.c_int]
+    return lib, f"gcc {gcc_version}"
+
+
+def _c_advance(libs: list[ctypes.CDLL], params: MapParams, n_threads: int) -> Advance:
+    """Advance with each library in turn and keep the faster (the libraries differ in tuning only)."""
+
+    def advance(state: State, step0: int, steps: int) -> tuple[State, Timing]:
+        best = None
+        for lib in libs:
+            out = _copy(state)
+            arrays = [out[name] for name in EVOLVED]
+            with _Clock() as clock:
+                lib.advance_map(out["x"].size, step0, steps, *_map_args(params), *arrays, n_threads)
+            if best is None or clock.timing.seconds < best[1].seconds:
+                best = (out, clock.timing)
+        return best
+
+    return advance
+
+
+def c_contenders(params: MapParams, threads: list[int], workdir: Path) -> tuple[list[Contender], str]:
+    lib, build = _build_c(C_SOURCE, workdir / "ratchet_map.so")
+    if lib is None:
+        return [Contender("c", "C OpenMP", t, None, build) for t in threads], build
+    build = f"{build}: {' '.join(C_FLAGS)}, OpenMP over points, called via ctypes"
+    return [Contender("c", "C OpenMP", t, _c_advance([lib], params, t)) for t in threads], build
+
+
+def _has_avx512() -> bool:
+    try:
+        with open("/proc/cpuinfo") as cpuinfo:
+            return any(line.startswith("flags") and " avx512f" in line for line in cpuinfo)
+    except OSError:
+        return False
+
+
+def c_avx512_contenders(params: MapParams, threads: list[int], workdir: Path) -> tuple[list[Contender], str]:
+    """``c/ratchet_map_avx512.c``, built with 6 and with 8 vectors per block; the faster counts."""
+    label = "C, hand-vectorised (AVX-512)"
+    if not _has_avx512():
+        reason = "unavailable: this CPU has no AVX-512"
+        return [Contender("c_avx512", label, t, None, reason) for t in threads], reason
+    libs = []
+    for nv in C_AVX512_VECTORS:
+        lib, build = _build_c(C_AVX512_SOURCE, workdir / f"ratchet_map_avx512_nv{nv}.so", (f"-DNV={nv}",))
+        if lib is None:
+            return [Contender("c_avx512", label, t, None, build) for t in threads], build
+        libs.append(lib)
+    build = (
+        f"{build}: {' '.join(C_FLAGS)}, AVX-512 intrinsics, NV = "
+        f"{' and '.join(map(str, C_AVX512_VECTORS))} 8-wide vectors per block (the faster per measurement)"
+    )
+    return [Contender("c_avx512", label, t, _c_advance(libs, params, t)) for t in threads], build
+
+
+# -- warpratchet ------------------------------------------------------------------------------------
+def _label(label: str, device: str) -> str:
+    return label if device == "cpu" else f"{label} ({device})"
+
+
+def warp_contenders(
+    params: MapParams, threads: list[int], device: str = "cpu"
+) -> tuple[list[Contender], str]:
+    """``Ensemble.run`` on ``device`` (on a GPU one row: CPU threads do not apply)."""
+    threads = threads if device == "cpu" else [1]
+
+    def make(n_threads: int) -> Advance:
+        def advance(state: State, step0: int, steps: int) -> tuple[State, Timing]:
+            ens = Ensemble.from_state(params, state, step0, threads=n_threads, device=device)
+            with _Clock() as clock:
+                ens.run(steps)
+            out = ens.state()
+            return {name: out[name] for name in EVOLVED}, clock.timing
+
+        return advance
+
+    # Warm-up: compiles the kernel (or loads it from Warp's cache) outside every measurement.
+    Ensemble.sample(params, 64, init=INIT, seed=SEED, threads=1, device=device).run(16)
+    build = f"warp {version('warp-lang')} {device}: Ensemble.run, {INTERLEAVE} points per Warp thread"
+    build += ", one Warp launch per Python thread" if device == "cpu" else ""
+    label = _label("warpratchet", device)
+    return [Contender("warpratchet", label, t, make(t), device=device) for t in threads], build
+
+
+def warp_indicator_contenders(
+    params: MapParams, threads: list[int], points: int, device: str = "cpu"
+) -> tuple[list[Contender], str]:
+    """``IndicatorEnsemble.run``: the same orbit plus MEGNO and FLI (``advance_map_indicators``).
+
+    The indicators must start at step 0, so each measurement samples the benchmark's ensemble
+    afresh and advances it ``WARMUP_STEPS`` untimed, to the very state the other rows start from.
+    """
+    threads = threads if device == "cpu" else [1]
+
+    def make(n_threads: int) -> Advance:
+        def advance(state: State, step0: int, steps: int) -> tuple[State, Timing]:
+            start_points = Ensemble.sample(params, points, init=INIT, seed=SEED, threads=1)
+            ens = IndicatorEnsemble(
+                params, start_points.array("x"), start_points.array("p0"), threads=n_threads, device=device
+            ).run(step0)
+            del start_points
+            with _Clock() as clock:
+                ens.run(steps)
+            out = ens.state()
+            return {name: out[name] for name in EVOLVED}, clock.timing
+
+        return advance
+
+    IndicatorEnsemble(params, np.zeros(64), np.zeros(64), threads=1, device=device).run(16)  # compile
+    build = f"{device}: IndicatorEnsemble.run, advance_map plus MEGNO and FLI (a log per point every 8 steps)"
+    label = _label("warpratchet + indicators", device)
+    rows = [Contender("warpratchet_indicators", label, t, make(t), device=device) for t in threads]
+    return rows, build
+
+
+def _map_args(params: MapParams) -> tuple[float, ...]:
+    """The kernel's scalar arguments ``K, b1, right = 1 - b2, l1, l2, c`` (Eqs. fx, mmc)."""
+    return (params.K, params.b1, 1.0 - params.b2, params.l1, params.l2, params.c)

@@ -1,0 +1,40 @@
+"""``advance_map``: the map and its tangent, nothing else (the plain variant of the step loop)."""
+
+import warp as wp
+
+from .advance import Variant, advance_kernel
+from .step import Lanes
+
+__all__ = ["advance_map", "PLAIN"]
+
+
+@wp.struct
+class _NoArrays:
+    pass
+
+
+@wp.struct
+class _NoAccumulators:
+    pass
+
+
+@wp.func
+def _load(arrays: _NoArrays, first: int, spacing: int, n: int):
+    return _NoAccumulators()
+
+
+@wp.func
+def _store(arrays: _NoArrays, acc: _NoAccumulators, first: int, spacing: int, n: int):
+    pass
+
+
+@wp.func
+def _nothing(acc: wp.ref[_NoAccumulators], s: wp.ref[Lanes], counter: wp.int64):
+    pass
+
+
+#: No per-step work: the hooks are empty and vanish when inlined.
+PLAIN = Variant("map", _NoArrays, _NoAccumulators, _load, _store, _nothing, _nothing)
+
+#: Advance the state by ``steps`` iterations of Eq. (cpem) and of ``DM`` from global step ``step0``.
+advance_map = advance_kernel(PLAIN)

@@ -1,0 +1,356 @@
+"""The step body: one iteration of Eq. (cpem) and of its tangent ``DM``, written once per backend.
+
+Arithmetic (``warpratchet.reference`` repeats it operation by operation in NumPy, which is what
+makes the two bitwise equal):
+
+* force, Eq. (fx): ``f = l1*x`` if ``x <= b1``; ``c - x`` if ``x < 1 - b2``; ``l2*(x - 1)``;
+* momentum kept as whole units ``w`` plus a fraction ``q`` in ``[0, 1)``: ``t = q + K*f``,
+  ``w += floor(t)``, ``q = t - floor(t)``, and a ``q`` that rounds up to exactly 1 (``t`` just
+  below an integer) is folded to 0 with ``w += 1``. A float64 momentum that grew to 10^4 would
+  lose the digits that ``x' = x + p' mod 1`` needs;
+* ``x' = x + q``, minus 1 if that is ``>= 1`` (exact: ``x + q < 2``);
+* tangent ``(dx, dp)``: ``dp' = dp + (K*f')*dx``, ``dx' = dx + dp'`` (``det DM = 1``);
+* renormalisation (``Body.renorm``, called by the kernels after every global step that is a
+  multiple of ``RENORM_CHECK_EVERY``): a tangent with ``|dx| > RENORM_THRESHOLD`` is divided by
+  its norm ``h = sqrt(dx^2 + dp^2)`` and ``log(h)`` is added to the log-stretch.
+
+A Warp thread advances :data:`INTERLEAVE` independent points, its *lanes*, held in a
+:class:`Lanes` struct of lane vectors. Besides the state, each step leaves two facts per lane
+that kernel variants may use (an unused fact costs nothing: the compiler drops it):
+``gain``, the whole units of momentum the step added (``floor(t)``, plus 1 on a fold), and
+``in_strip``, 1 where the new ``x`` lies in the strip B of Eq. (B) (``x <= b1`` or
+``x >= 1 - b2``), else 0.
+
+Two bodies, one arithmetic:
+
+* :data:`PORTABLE`, plain Warp (a scalar step per lane), compiles for CUDA and the CPU;
+* :data:`CPU`, the same operations on whole lane vectors in C++ (``wp.func_native`` with clang
+  vector extensions): ``floor`` is one ``vrndscalepd`` per 8 lanes (AVX-512), each three-way
+  choice a pair of masked blends, and no libm call sits in the step (only ``log`` in a renormalisation,
+  once per ~600 steps for a chaotic point). It is only ever compiled for the CPU.
+
+``tests/test_kernels.py`` checks that both give bitwise the same states on the CPU.
+"""
+
+from typing import NamedTuple
+
+import warp as wp
+
+__all__ = [
+    "INTERLEAVE",
+    "RENORM_CHECK_EVERY",
+    "RENORM_THRESHOLD",
+    "LaneVector",
+    "Lanes",
+    "State",
+    "Coefficients",
+    "Body",
+    "CPU",
+    "PORTABLE",
+    "load_lane_vector",
+    "store_lane_vector",
+    "VECTOR_TYPES",
+    "LOG_LANES",
+]
+
+#: Renormalise the tangent when ``|dx|`` passes this. Between two checks (8 steps) a vector
+#: grows by at most ``(2 + K max(l1, l2))^8``, below 1e208 for every ``b1, b2 > 1e-25``.
+RENORM_THRESHOLD = 1.0e100
+#: Steps between two renormalisation checks (a power of two: the test is a bit mask).
+RENORM_CHECK_EVERY = 8
+
+
+def _has_avx512() -> bool:
+    try:
+        with open("/proc/cpuinfo") as cpuinfo:
+            return any(line.startswith("flags") and " avx512f" in line for line in cpuinfo)
+    except OSError:  # not Linux
+        return False
+
+
+#: Points advanced per Warp thread: 32 where the CPU has AVX-512 (four 8-wide vectors per field
+#: in 32 vector registers), 16 elsewhere (AVX2: 16 registers of 4). See the package docstring.
+INTERLEAVE = 32 if _has_avx512() else 16
+
+#: One float64 per lane.
+LaneVector = wp.types.vector(length=INTERLEAVE, dtype=wp.float64)
+
+
+@wp.struct
+class Lanes:
+    """The lanes of one Warp thread: state and the facts of the last step."""
+
+    x: LaneVector
+    q: LaneVector
+    w: LaneVector  # whole units of momentum gained since the launch (exact below 2^53)
+    dx: LaneVector
+    dp: LaneVector
+    log_stretch: LaneVector
+    gain: LaneVector  # whole units gained by the last step
+    in_strip: LaneVector  # 1.0 where x after the last step lies in B, Eq. (B); else 0.0
+
+
+@wp.struct
+class State:
+    """The per-point state arrays a kernel advances, shape ``(n,)`` each."""
+
+    x: wp.array(dtype=wp.float64)
+    q: wp.array(dtype=wp.float64)
+    winding: wp.array(dtype=wp.int64)
+    dx: wp.array(dtype=wp.float64)
+    dp: wp.array(dtype=wp.float64)
+    log_stretch: wp.array(dtype=wp.float64)
+
+
+@wp.struct
+class Coefficients:
+    """The map: ``K``, the kinks ``b1`` and ``right = 1 - b2``, and ``l1, l2, c`` of Eq. (mmc)."""
+
+    K: wp.float64
+    b1: wp.float64
+    right: wp.float64
+    l1: wp.float64
+    l2: wp.float64
+    c: wp.float64
+
+
+# -- lane layout and loads ----------------------------------------------------------------------
+@wp.func
+def load_lane_vector(a: wp.array(dtype=wp.float64), first: int, spacing: int, n: int):
+    """Lanes ``first + k*spacing`` of ``a``; lanes past ``n`` repeat point ``n - 1``."""
+    v = LaneVector()
+    for k in range(wp.static(INTERLEAVE)):
+        v[k] = a[wp.min(first + k * spacing, n - 1)]
+    return v
+
+
+@wp.func
+def store_lane_vector(a: wp.array(dtype=wp.float64), v: LaneVector, first: int, spacing: int, n: int):
+    """Store the lanes that are real points."""
+    for k in range(wp.static(INTERLEAVE)):
+        i = first + k * spacing
+        if i < n:
+            a[i] = v[k]
+
+
+@wp.func
+def _load(state: State, first: int, spacing: int, n: int):
+    s = Lanes()
+    s.x = load_lane_vector(state.x, first, spacing, n)
+    s.q = load_lane_vector(state.q, first, spacing, n)
+    s.dx = load_lane_vector(state.dx, first, spacing, n)
+    s.dp = load_lane_vector(state.dp, first, spacing, n)
+    s.log_stretch = load_lane_vector(state.log_stretch, first, spacing, n)
+    return s
+
+
+@wp.func
+def _store(state: State, s: Lanes, first: int, spacing: int, n: int):
+    store_lane_vector(state.x, s.x, first, spacing, n)
+    store_lane_vector(state.q, s.q, first, spacing, n)
+    store_lane_vector(state.dx, s.dx, first, spacing, n)
+    store_lane_vector(state.dp, s.dp, first, spacing, n)
+    store_lane_vector(state.log_stretch, s.log_stretch, first, spacing, n)
+    for k in range(wp.static(INTERLEAVE)):
+        i = first + k * spacing
+        if i < n:
+            state.winding[i] = state.winding[i] + wp.int64(s.w[k])
+
+
+@wp.func
+def _blocks(tid: int, n: int):
+    """CPU layout: thread ``tid`` holds points ``tid*INTERLEAVE + k``, one contiguous block."""
+    return tid * wp.static(INTERLEAVE), 1
+
+
+@wp.func
+def _strided(tid: int, n: int):
+    """CUDA layout: lane ``k`` of thread ``tid`` is point ``tid + k*stride``, so that neighbouring
+    threads touch neighbouring addresses (coalesced loads)."""
+    return tid, (n + wp.static(INTERLEAVE - 1)) // wp.static(INTERLEAVE)
+
+
+# -- the portable body (plain Warp) -------------------------------------------------------------
+@wp.func
+def _step_point(x: wp.float64, q: wp.float64, w: wp.float64, dx: wp.float64, dp: wp.float64, p: Coefficients):
+    """One iteration for one point; returns ``x, q, w, dx, dp, gain, in_strip``."""
+    one = wp.float64(1.0)
+    zero = wp.float64(0.0)
+    in_left = x <= p.b1
+    in_middle = x < p.right
+    # Eq. (fx) and its slope; wp.where keeps the step branch free.
+    f = wp.where(in_left, p.l1 * x, wp.where(in_middle, p.c - x, p.l2 * (x - one)))
+    slope = wp.where(in_left, p.l1, wp.where(in_middle, -one, p.l2))
+    t = q + p.K * f
+    fl = wp.floor(t)
+    q = t - fl
+    # t just below an integer can round t - floor(t) up to exactly 1: fold it back.
+    wrap = q >= one
+    q = wp.where(wrap, zero, q)
+    lift = wp.where(wrap, one, zero)
+    w = w + fl + lift
+    x = x + q
+    x = wp.where(x >= one, x - one, x)
+    dp = dp + (p.K * slope) * dx
+    dx = dx + dp
+    in_strip = wp.where(x <= p.b1 or x >= p.right, one, zero)
+    return x, q, w, dx, dp, fl + lift, in_strip
+
+
+@wp.func
+def _step_portable(s: wp.ref[Lanes], p: Coefficients):
+    for k in range(wp.static(INTERLEAVE)):
+        x, q, w, dx, dp, gain, in_strip = _step_point(s.x[k], s.q[k], s.w[k], s.dx[k], s.dp[k], p)
+        s.x[k] = x
+        s.q[k] = q
+        s.w[k] = w
+        s.dx[k] = dx
+        s.dp[k] = dp
+        s.gain[k] = gain
+        s.in_strip[k] = in_strip
+
+
+@wp.func
+def _renorm_portable(s: wp.ref[Lanes]):
+    for k in range(wp.static(INTERLEAVE)):
+        dx = s.dx[k]
+        dp = s.dp[k]
+        if wp.abs(dx) > wp.float64(RENORM_THRESHOLD):
+            h = wp.sqrt(dx * dx + dp * dp)
+            s.log_stretch[k] = s.log_stretch[k] + wp.log(h)
+            s.dx[k] = dx / h
+            s.dp[k] = dp / h
+
+
+# -- the CPU body (clang vector extensions) -----------------------------------------------------
+# One C++ vector of INTERLEAVE doubles per state field; LLVM splits it into 512-bit registers
+# (AVX-512) or 256-bit ones, and the independent pieces hide each other's latencies. Written one
+# operation per statement, in the order of _step_point (and -ffp-contract=off), so that every
+# rounding is the scalar one. The lane vectors are copied in and out with memcpy, which LLVM turns
+# into registers once the function is inlined into the step loop.
+#: The C++ lane vector ``v_t`` of the CPU snippets (variants' CPU hooks use it too).
+VECTOR_TYPES = f"""
+typedef double v_t __attribute__((ext_vector_type({INTERLEAVE})));
+"""
+
+_STEP_CPU = (
+    VECTOR_TYPES
+    + """
+v_t x, q, w, dx, dp;
+__builtin_memcpy(&x, &s.x, sizeof(v_t));
+__builtin_memcpy(&q, &s.q, sizeof(v_t));
+__builtin_memcpy(&w, &s.w, sizeof(v_t));
+__builtin_memcpy(&dx, &s.dx, sizeof(v_t));
+__builtin_memcpy(&dp, &s.dp, sizeof(v_t));
+const v_t one = 1.0, zero = 0.0;
+const auto in_left = x <= p.b1;
+const auto in_middle = x < p.right;
+const v_t f_left = p.l1 * x;
+const v_t f_middle = p.c - x;
+const v_t x_minus_one = x - one;
+const v_t f_right = p.l2 * x_minus_one;
+const v_t f = in_left ? f_left : (in_middle ? f_middle : f_right);
+/* K*slope per piece: K*l1, K*(-1), K*l2 are the roundings of the scalar K*slope. */
+const v_t k_left = p.K * p.l1, k_middle = -p.K, k_right = p.K * p.l2;
+const v_t k_slope = in_left ? k_left : (in_middle ? k_middle : k_right);
+const v_t kick = p.K * f;
+const v_t t = q + kick;
+const v_t fl = __builtin_elementwise_floor(t);
+q = t - fl;
+const auto wrap = q >= one;
+q = wrap ? zero : q;
+const v_t lift = wrap ? one : zero;
+const v_t w_fl = w + fl;
+w = w_fl + lift;
+x = x + q;
+const v_t x_wrapped = x - one;
+x = x >= one ? x_wrapped : x;
+const v_t k_slope_dx = k_slope * dx;
+dp = dp + k_slope_dx;
+dx = dx + dp;
+const v_t gain = fl + lift;
+const v_t in_strip = ((x <= p.b1) | (x >= p.right)) ? one : zero;
+__builtin_memcpy(&s.x, &x, sizeof(v_t));
+__builtin_memcpy(&s.q, &q, sizeof(v_t));
+__builtin_memcpy(&s.w, &w, sizeof(v_t));
+__builtin_memcpy(&s.dx, &dx, sizeof(v_t));
+__builtin_memcpy(&s.dp, &dp, sizeof(v_t));
+__builtin_memcpy(&s.gain, &gain, sizeof(v_t));
+__builtin_memcpy(&s.in_strip, &in_strip, sizeof(v_t));
+"""
+)
+
+#: C++ for the CPU snippets: ``log_lanes::run(in, use, out)`` sets ``out[k] = log(in[k])`` for the
+#: lanes with ``use[k]`` set (all lanes if ``use`` is null) with the libm ``log`` that ``wp.log``
+#: calls. Out of line, so that the calls do not force the caller's lane vectors through memory
+#: around each of them.
+LOG_LANES = f"""
+struct log_lanes {{
+    static __attribute__((noinline)) void run(const double* in, const long long* use, double* out) {{
+        for (int k = 0; k < {INTERLEAVE}; k++)
+            out[k] = (use == nullptr || use[k]) ? wp::log(in[k]) : 0.0;
+    }}
+}};
+"""
+
+_RENORM_CPU = (
+    VECTOR_TYPES
+    + LOG_LANES
+    + f"""
+v_t dx, dp;
+__builtin_memcpy(&dx, &s.dx, sizeof(v_t));
+__builtin_memcpy(&dp, &s.dp, sizeof(v_t));
+const v_t threshold = {RENORM_THRESHOLD!r};
+const auto big = __builtin_elementwise_abs(dx) > threshold;
+if (__builtin_reduce_or(big) != 0) {{
+    /* A chaotic tangent passes 1e100 every ~660 steps (~80 checks), so with 32 lanes this branch
+       runs at about two checks in five.
+       sqrt and division are IEEE in vector form too; log goes lane by lane. */
+    v_t log_stretch;
+    __builtin_memcpy(&log_stretch, &s.log_stretch, sizeof(v_t));
+    const v_t dx2 = dx * dx;
+    const v_t dp2 = dp * dp;
+    const v_t norm2 = dx2 + dp2;
+    const v_t h = __builtin_elementwise_sqrt(norm2);
+    double h_lanes[{INTERLEAVE}], log_h[{INTERLEAVE}];
+    long long use[{INTERLEAVE}];
+    __builtin_memcpy(h_lanes, &h, sizeof(v_t));
+    __builtin_memcpy(use, &big, sizeof(use));
+    log_lanes::run(h_lanes, use, log_h);
+    v_t log_h_v;
+    __builtin_memcpy(&log_h_v, log_h, sizeof(v_t));
+    const v_t stretched = log_stretch + log_h_v;
+    const v_t dx_unit = dx / h;
+    const v_t dp_unit = dp / h;
+    log_stretch = big ? stretched : log_stretch;
+    dx = big ? dx_unit : dx;
+    dp = big ? dp_unit : dp;
+    __builtin_memcpy(&s.log_stretch, &log_stretch, sizeof(v_t));
+    __builtin_memcpy(&s.dx, &dx, sizeof(v_t));
+    __builtin_memcpy(&s.dp, &dp, sizeof(v_t));
+}}
+"""
+)
+
+
+@wp.func_native(_STEP_CPU)
+def _step_cpu(s: wp.ref[Lanes], p: Coefficients): ...
+
+
+@wp.func_native(_RENORM_CPU)
+def _renorm_cpu(s: wp.ref[Lanes]): ...
+
+
+class Body(NamedTuple):
+    """One implementation of the step body; kernels take every part from here."""
+
+    name: str
+    layout: wp.Function  # (tid, n) -> (first, spacing): lane k is point first + k*spacing
+    load: wp.Function  # (State, first, spacing, n) -> Lanes
+    store: wp.Function  # (State, Lanes, first, spacing, n)
+    step: wp.Function  # (ref Lanes, Coefficients): one iteration, facts included
+    renorm: wp.Function  # (ref Lanes): the renormalisation check
+
+
+PORTABLE = Body("portable", _strided, _load, _store, _step_portable, _renorm_portable)
+CPU = Body("cpu", _blocks, _load, _store, _step_cpu, _renorm_cpu)
