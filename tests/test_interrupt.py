@@ -155,11 +155,11 @@ def test_an_error_inside_a_chunk_marks_the_ensemble_undefined(monkeypatch):
     calls = []
     original = ens._launch
 
-    def flaky(lo, hi, steps):
+    def flaky(lo, hi, step0, steps):
         calls.append(lo)
         if lo > 0:  # the second shard fails, the first advances: points at two different steps
             raise RuntimeError("launch failed")
-        original(lo, hi, steps)
+        original(lo, hi, step0, steps)
 
     monkeypatch.setattr(ens, "_launch", flaky)
     with pytest.raises(RuntimeError, match="launch failed"):
