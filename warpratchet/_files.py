@@ -11,23 +11,29 @@
 * **Advisory locks** (:func:`try_lock`, :func:`claim`): ``flock`` on a descriptor; a writer holds
   a shared lock, and whoever replaces or rebuilds a file needs an exclusive one, so a file that
   a live process uses is never touched.
-* **HDF5** (:func:`sync_h5`, :func:`open_h5_reader`): flush-and-fsync of an open file, and the
-  reader options for files that another process may be writing (SWMR with bounded retries, no
-  raw-chunk cache).
+* **HDF5** (:data:`LIBVER`, :func:`sync_h5`, :func:`open_h5_reader`, :func:`open_h5`): the file
+  format every writer pins, flush-and-fsync of an open file, and opening a file that another
+  process may be writing (SWMR-read when the file says a writer has it open, with bounded
+  retries, no raw-chunk cache).
+* **Storage failures** (:func:`storage_errors`, :class:`StorageError`): a full disk, a read-only
+  folder or a missing permission becomes one line naming the file and the cause.
 
 Errors are the standard ``OSError`` subclasses with a one-line message naming the path
-(``FileExistsError``, ``FileNotFoundError``, ``BlockingIOError`` for a file in use); callers
-with their own error type (e.g. :class:`warpratchet.archive.ArchiveError`) wrap them.
+(``FileExistsError``, ``FileNotFoundError``, ``BlockingIOError`` for a file in use,
+:class:`StorageError` for a write the system refused); callers with their own error type (e.g.
+:class:`warpratchet.archive.ArchiveError`) wrap the first three.
 """
 
 from __future__ import annotations
 
 import contextlib
 import ctypes
+import errno
 import functools
 import os
 import re
 import tempfile
+import time
 from collections.abc import Iterator
 
 import h5py
@@ -46,8 +52,14 @@ __all__ = [
     "try_lock",
     "claim",
     "sync_h5",
+    "LIBVER",
     "SWMR_READ_ATTEMPTS",
     "open_h5_reader",
+    "writer_marked",
+    "open_h5",
+    "StorageError",
+    "storage_errors",
+    "abandon_h5",
 ]
 
 
@@ -190,10 +202,38 @@ def claim(path: str | os.PathLike, *, exclusive: bool) -> int:
 
 
 # -- HDF5 --------------------------------------------------------------------------------------------
+#: HDF5 file-format bounds of every file warpratchet writes: the object formats of HDF5 1.10, the
+#: oldest line that has SWMR. ``libver="latest"`` would follow the installed library (HDF5 2.0
+#: object formats that the 1.10 tools of Debian and Ubuntu cannot read: "h5dump error: internal
+#: error"); 1.10's formats still checksum every piece of metadata (superblock v3, object
+#: headers v2, chunk indices).
+LIBVER = ("v110", "v110")
+
+
 def sync_h5(f: h5py.File) -> None:
     """Flush an open HDF5 file and fsync it: everything written so far is on disk."""
     f.flush()
     os.fsync(f.id.get_vfd_handle())
+
+
+def abandon_h5(f: h5py.File) -> None:
+    """Close an HDF5 file whose last write failed, leaving the file on disk as it stands.
+
+    After a failed write (a full disk), HDF5 keeps the unwritten metadata dirty and retries it
+    when the file is closed, which fails again; at interpreter exit the library then closes
+    the file once more and crashes (exit 139, issue 13.3). Pointing HDF5's descriptor at
+    ``/dev/null`` first lets the close succeed without touching the file: it keeps what the last
+    successful flush wrote (for an SWMR writer, a consistent file still marked open, exactly
+    what a killed writer leaves, which readers and ``resume`` handle).
+    """
+    with contextlib.suppress(Exception):
+        if f.id.valid:
+            null = os.open(os.devnull, os.O_RDWR)
+            try:
+                os.dup2(null, f.id.get_vfd_handle())
+            finally:
+                os.close(null)
+            f.close()
 
 
 #: Metadata read attempts of an SWMR reader. A reader may catch metadata the writer is
@@ -252,3 +292,122 @@ def open_h5_reader(path: str | os.PathLike, *, locking: bool | None = None, swmr
     flags = h5f.ACC_RDONLY | (h5f.ACC_SWMR_READ if swmr else 0)
     fid = h5f.open(os.fsencode(path), flags, fapl=fapl)
     return h5py.File(fid)
+
+
+#: Superblock file-consistency flags (HDF5 file format spec, superblock versions 2 and 3): a
+#: writer has the file open for writing / for SWMR writing.
+_WRITE_ACCESS, _SWMR_WRITE_ACCESS = 0x01, 0x04
+_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def writer_marked(path: str | os.PathLike) -> bool:
+    """Whether the file's superblock says a writer has it open (a live one, or a killed one).
+
+    Read from the superblock's consistency flags (versions 2 and 3; HDF5 looks for the
+    superblock at 0, 512, 1024, ...). Older superblocks carry no such mark: False.
+    """
+    with open(path, "rb") as fh:
+        size = os.fstat(fh.fileno()).st_size
+        where = 0
+        while where + 12 <= size:
+            fh.seek(where)
+            head = fh.read(12)
+            if head[:8] == _SIGNATURE:
+                return head[8] >= 2 and bool(head[11] & (_WRITE_ACCESS | _SWMR_WRITE_ACCESS))
+            where = 512 if where == 0 else 2 * where
+    return False
+
+
+def open_h5(path: str | os.PathLike, *, locking: bool | None = None) -> h5py.File:
+    """Open an HDF5 file read-only, live or not: the one way readers of warpratchet files open them.
+
+    A file that a writer has open (or that a killed writer left marked open) is opened in
+    SWMR-read mode; any other normally, so that HDF5 compares its size with the superblock and
+    a truncated file is an error at once. The superblock's mark decides, not a failed normal
+    open: HDF5 checks a file's size *before* its mark, so a live file whose writer has just
+    allocated space it has not written yet gives a false "truncated file" (issue 13.4).
+
+    Raises
+    ------
+    OSError
+        HDF5's error (truncated, corrupted, not HDF5, locked by a writer that has not yet
+        entered SWMR mode after ~1 s of retries).
+    """
+    path = os.fspath(path)
+    for attempt in range(20):
+        try:
+            return open_h5_reader(path, locking=locking, swmr=writer_marked(path))
+        except OSError as exc:
+            text = str(exc)
+            if "SWMR read access flag not the same" in text:
+                # This process is writing it: HDF5 shares the writer's handle instead.
+                return h5py.File(path, "r", **({} if locking is None else {"locking": locking}))
+            if "unable to lock file" in text and attempt < 19:
+                time.sleep(0.05)  # another program's writer, about to enter SWMR mode
+                continue
+            raise
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+# -- storage failures ----------------------------------------------------------------------------
+class StorageError(OSError):
+    """The system refused a write: disk full, read-only file system, no permission, I/O error.
+
+    ``str()`` is one line naming the file and the cause; the CLI exits with status 1.
+    """
+
+    def __str__(self) -> str:
+        return self.strerror or super().__str__()
+
+
+#: errno values that mean "this storage cannot take the write", not "bad input".
+STORAGE_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.EIO, errno.EFBIG}
+_CAUSES = {
+    errno.ENOSPC: "no space left on the device (disk full)",
+    errno.EDQUOT: "disk quota exceeded",
+    errno.EROFS: "read-only file system",
+    errno.EACCES: "permission denied",
+    errno.EPERM: "operation not permitted",
+    errno.EIO: "input/output error",
+    errno.EFBIG: "file too large",
+}
+#: HDF5 reports a failed write(2) in its own words; the errno survives only as text.
+_HDF5_CAUSES = (
+    ("No space left on device", errno.ENOSPC),
+    ("Disk quota exceeded", errno.EDQUOT),
+    ("Read-only file system", errno.EROFS),
+    ("Permission denied", errno.EACCES),
+    ("Input/output error", errno.EIO),
+    ("File too large", errno.EFBIG),
+)
+
+
+def storage_cause(exc: BaseException) -> int | None:
+    """The errno of a storage failure (:data:`STORAGE_ERRNOS`), from ``OSError`` or HDF5's text."""
+    if isinstance(exc, StorageError):
+        return exc.errno
+    if isinstance(exc, OSError) and exc.errno in STORAGE_ERRNOS:
+        return exc.errno
+    if isinstance(exc, (OSError, RuntimeError)):
+        text = str(exc)
+        for words, code in _HDF5_CAUSES:
+            if words in text:
+                return code
+    return None
+
+
+@contextlib.contextmanager
+def storage_errors(path: str | os.PathLike, doing: str = "write", hint: str = "") -> Iterator[None]:
+    """Re-raise a storage failure inside the block as one :class:`StorageError` line.
+
+    ``"cannot {doing} {path}: {cause}{hint}"``; other errors pass unchanged.
+    """
+    try:
+        yield
+    except StorageError:
+        raise
+    except (OSError, RuntimeError) as exc:
+        code = storage_cause(exc)
+        if code is None:
+            raise
+        raise StorageError(code, f"cannot {doing} {os.fspath(path)}: {_CAUSES[code]}{hint}") from None
