@@ -35,6 +35,7 @@ import re
 import tempfile
 import time
 from collections.abc import Iterator
+from typing import Any
 
 import h5py
 from h5py import h5f, h5p
@@ -55,11 +56,14 @@ __all__ = [
     "LIBVER",
     "SWMR_READ_ATTEMPTS",
     "open_h5_reader",
+    "compact_links",
     "writer_marked",
     "open_h5",
     "StorageError",
     "storage_errors",
     "abandon_h5",
+    "SPACE_MARGIN",
+    "ensure_space",
 ]
 
 
@@ -244,9 +248,9 @@ SWMR_READ_ATTEMPTS = 27
 
 
 @functools.cache
-def _read_attempts_setter():
-    """``H5Pset_metadata_read_attempts`` of the libhdf5 that h5py uses (h5py does not wrap
-    it), or None if that library cannot be identified (then HDF5's default applies)."""
+def _libhdf5() -> ctypes.CDLL | None:
+    """The libhdf5 that h5py uses, for the few calls h5py does not wrap; None if it cannot be
+    identified (then HDF5's defaults apply)."""
     try:
         with open("/proc/self/maps") as fh:
             fields = [line.split(None, 5) for line in fh]
@@ -259,12 +263,34 @@ def _read_attempts_setter():
     if len(libs) != 1:
         return None
     try:
-        setter = ctypes.CDLL(libs[0]).H5Pset_metadata_read_attempts
-    except (OSError, AttributeError):
+        return ctypes.CDLL(libs[0])
+    except OSError:
         return None
-    setter.argtypes = [ctypes.c_int64, ctypes.c_uint]
-    setter.restype = ctypes.c_int
-    return setter
+
+
+def _hdf5_call(name: str, argtypes: list) -> Any:
+    lib = _libhdf5()
+    func = getattr(lib, name, None) if lib is not None else None
+    if func is not None:
+        func.argtypes = argtypes
+        func.restype = ctypes.c_int
+    return func
+
+
+def _read_attempts_setter():
+    """``H5Pset_metadata_read_attempts`` (h5py does not wrap it), or None."""
+    return _hdf5_call("H5Pset_metadata_read_attempts", [ctypes.c_int64, ctypes.c_uint])
+
+
+def compact_links(gcpl: h5p.PropGCID, max_compact: int = 64) -> bool:
+    """Keep up to ``max_compact`` links of a new group in its (checksummed) object header.
+
+    Past 8 links HDF5 moves them to "dense" storage, a fractal heap whose blocks carry no
+    checksum: a flipped bit there changes a link silently, and crashed HDF5 while listing the
+    group. ``H5Pset_link_phase_change`` (h5py does not wrap it); False if unavailable.
+    """
+    setter = _hdf5_call("H5Pset_link_phase_change", [ctypes.c_int64, ctypes.c_uint, ctypes.c_uint])
+    return setter is not None and setter(gcpl.id, max_compact, max_compact // 2) >= 0
 
 
 def open_h5_reader(path: str | os.PathLike, *, locking: bool | None = None, swmr: bool = False) -> h5py.File:
@@ -404,10 +430,38 @@ def storage_errors(path: str | os.PathLike, doing: str = "write", hint: str = ""
     """
     try:
         yield
-    except StorageError:
+    except StorageError as exc:
+        if hint and not str(exc).endswith(hint):
+            raise StorageError(exc.errno, f"{exc}{hint}") from None
         raise
     except (OSError, RuntimeError) as exc:
         code = storage_cause(exc)
         if code is None:
             raise
         raise StorageError(code, f"cannot {doing} {os.fspath(path)}: {_CAUSES[code]}{hint}") from None
+
+
+#: Free space kept beyond what a write needs: HDF5's own metadata of the write, with room to spare.
+SPACE_MARGIN = 256 * 1024
+
+
+def ensure_space(path: str | os.PathLike, needed: int, what: str) -> None:
+    """StorageError (disk full) unless the file system of ``path`` has ``needed`` bytes (+ margin) free.
+
+    Called before a write that allocates new space, so that HDF5 itself never meets a full disk:
+    a write HDF5 cannot complete can surface later, where no caller can catch it (while an object
+    is released) and crash the process at exit. A disk that another process fills meanwhile can
+    still fail a write; the writers handle that too (:func:`abandon_h5`).
+    """
+    folder = os.path.dirname(os.path.abspath(path))
+    try:
+        st = os.statvfs(folder)
+    except (OSError, AttributeError):  # no statvfs (Windows) or a vanished folder: let the write tell
+        return
+    free = st.f_bavail * st.f_frsize
+    if free < needed + SPACE_MARGIN:
+        raise StorageError(
+            errno.ENOSPC,
+            f"cannot write {os.fspath(path)}: {_CAUSES[errno.ENOSPC]}: {what} needs "
+            f"{(needed + SPACE_MARGIN) / 1e6:.2f} MB, {free / 1e6:.2f} MB free",
+        )

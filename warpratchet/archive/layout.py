@@ -24,6 +24,7 @@ import h5py
 import numpy as np
 from h5py import h5g, h5p
 
+from .._files import compact_links
 from ..ensemble import RENORM_CHECK_EVERY, RENORM_THRESHOLD, STATE_FIELDS
 from ..params import MapParams
 from ..spec import LEGACY_NAMES, attr_value, check_setting
@@ -215,8 +216,13 @@ def create(
 
 
 def _group(parent: h5py.Group, name: str) -> h5py.Group:
-    """A group whose attributes all live in its (checksummed) object header, not in dense storage."""
+    """A group whose links and attributes all live in its (checksummed) object header.
+
+    Past 8 links or attributes HDF5 moves them to "dense" storage, a fractal heap whose blocks
+    carry no checksum: a flipped bit there changed a link and crashed HDF5 while listing the group.
+    """
     gcpl = h5p.create(h5p.GROUP_CREATE)
+    compact_links(gcpl)
     gcpl.set_attr_phase_change(64, 32)
     h5g.create(parent.id, name.encode(), gcpl=gcpl)
     return parent[name]

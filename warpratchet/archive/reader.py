@@ -24,6 +24,7 @@ import h5py
 import numpy as np
 
 from .._files import open_h5
+from .._h5verify import chunk_past_end, first_line
 from ..ensemble import STATE_FIELDS, Ensemble
 from ..params import MapParams
 from ..spec import SAMPLERS, RunSpec, attr_value
@@ -41,11 +42,6 @@ from .names import (
 )
 
 __all__ = ["Snapshots", "Archive", "open_archive", "first_line", "reading", "nonfinite"]
-
-
-def first_line(exc: BaseException) -> str:
-    text = str(exc).strip() or type(exc).__name__
-    return text.splitlines()[0]
 
 
 @contextlib.contextmanager
@@ -68,26 +64,11 @@ def _refresh(ds: h5py.Dataset) -> h5py.Dataset:
 
 
 def check_extent(path: str, ds: h5py.Dataset, rows: int | None = None) -> None:
-    """ArchiveError if a stored chunk of ``ds`` (holding one of its first ``rows`` rows) lies past
-    the end of the file.
-
-    HDF5 reads past the end of a file as zeros, and a chunk of zeros carries a valid Fletcher-32
-    checksum (zero). A file opened in SWMR mode (a killed writer's) skips HDF5's own size check,
-    so a truncated one would give zeros as data; this check refuses them. A live writer's file
-    passes: its valid rows and complete checkpoints are on disk before anything points at them.
-    """
-    if ds.chunks is None:
-        return
-    size = os.path.getsize(path)
-    for i in range(ds.id.get_num_chunks()):
-        info = ds.id.get_chunk_info(i)
-        if rows is not None and info.chunk_offset[0] >= rows:
-            continue
-        if info.byte_offset + info.size > size:
-            raise ArchiveError(
-                f"{path}: {ds.name} has data past the end of the file "
-                f"(byte {info.byte_offset + info.size} of {size}); the archive is truncated or corrupted"
-            )
+    """ArchiveError if a chunk of ``ds`` holding one of its first ``rows`` rows is past the end of
+    the file (HDF5 would read it as zeros with a valid checksum; see ``_h5verify.chunk_past_end``)."""
+    past = chunk_past_end(path, ds, rows)
+    if past is not None:
+        raise ArchiveError(f"{path}: {past}; the archive is truncated or corrupted")
 
 
 def nonfinite(state: dict[str, np.ndarray]) -> dict[str, int]:
@@ -247,8 +228,8 @@ class Archive:
     def snapshots(self) -> Snapshots:
         """Snapshots recorded so far (``S`` may be 0); see :class:`Snapshots`."""
         n = self.snapshot_count
-        g = self._file["snapshots"]
         with reading(self.path, "/snapshots"):
+            g = self._file["snapshots"]
             indices = _refresh(g["indices"])[:]
             steps = _refresh(g["step"])
             if steps.shape[0] < n:

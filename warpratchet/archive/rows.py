@@ -50,6 +50,14 @@ class Rows:
             space.select_hyperslab((self.count,) + (0,) * (len(shape) - 1), shape)
             ds.id.write(h5s.create_simple(shape), space, values)
 
+    def growth_bytes(self) -> int:
+        """Bytes of new chunks the next :meth:`put` allocates (HDF5 allocates a chunk at its first write)."""
+        return sum(
+            ds.dtype.itemsize * int(np.prod(ds.chunks))
+            for ds in self.datasets.values()
+            if self.count % ds.chunks[0] == 0
+        )
+
     def commit(self) -> None:
         self.count += 1
         set_counter(self.counter, self.count)

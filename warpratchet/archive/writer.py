@@ -46,6 +46,7 @@ from .._files import (
     abandon_h5,
     check_new_path,
     claim,
+    ensure_space,
     publish,
     storage_errors,
     sync_h5,
@@ -196,7 +197,8 @@ class ArchiveSink(Observer):
                 "initial_step": ensemble.step,
                 "indices": indices,
             }
-            self._build(path, contents, ensemble, replace=exists)
+            needed = sum(v.nbytes for k, v in initial.items() if np.any(v != layout.FILL[k]))
+            self._build(path, contents, ensemble, replace=exists, needed=needed)
         finally:
             if old_fd is not None:
                 os.close(old_fd)
@@ -214,11 +216,15 @@ class ArchiveSink(Observer):
         fill: Callable[[h5py.File], None] | None = None,
         rows: int = 0,
         snaps: int = 0,
+        needed: int = 0,
     ) -> None:
         """Create the layout under a temporary name, ``fill`` it, bind it, publish it atomically.
 
-        A failure (a full disk) leaves no temporary file and the old file, if any, untouched.
+        ``needed`` bytes must be free first. A failure (a full disk) leaves no temporary file and
+        the old file, if any, untouched.
         """
+        with storage_errors(path, "create"):
+            ensure_space(path, needed, "the new archive")
         with storage_errors(path, "create"), temporary_beside(path) as tmp:
             if keep_mode:
                 with contextlib.suppress(OSError):
@@ -302,6 +308,7 @@ class ArchiveSink(Observer):
                 fill=old.write,
                 rows=old.rows,
                 snaps=len(old.snapshots),
+                needed=os.path.getsize(path),  # a rebuilt copy is about as large
             )
         finally:
             os.close(old_fd)
@@ -360,11 +367,14 @@ class ArchiveSink(Observer):
                     f"the archive keeps its checkpoint at step {self.checkpoint_step}"
                 ) from None
             clocks = {"wall_time": seconds, "unix_time": time.time()}
-            self._series.put({name: clocks.get(name, summary.get(name)) for name in SERIES_FIELDS})
             snap = (
                 self.snapshot_every
                 and step // self.snapshot_every > self._last_snapshot // self.snapshot_every
             )
+            new_bytes = self._series.growth_bytes() + (self._snapshots.growth_bytes() if snap else 0)
+            if new_bytes:
+                ensure_space(self.path, new_bytes, "the next rows")
+            self._series.put({name: clocks.get(name, summary.get(name)) for name in SERIES_FIELDS})
             if snap:
                 sub = {name: live[name][self._indices] for name in STATE_FIELDS}
                 self._snapshots.put(
@@ -420,6 +430,8 @@ class ArchiveSink(Observer):
         free = 1 - self._current if self._current >= 0 else 0
         slot = f["checkpoint"][SLOTS[free]]
         with self._writing():
+            if slot["x"].id.get_num_chunks() == 0:  # the slot's first use allocates its space
+                ensure_space(self.path, sum(v.nbytes for v in state.values()), "the checkpoint")
             set_counter(slot["step"], -1)  # in progress: neither a reader nor a recovery may trust it
             f.flush()
             for name in STATE_FIELDS:

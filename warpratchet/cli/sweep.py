@@ -191,6 +191,13 @@ def command(args: argparse.Namespace) -> int:
         )
     except ImportError as exc:
         raise UsageError(str(exc)) from None
+    except KeyboardInterrupt:
+        if args.out is None:
+            raise
+        raise KeyboardInterrupt(
+            f"{args.out} keeps its finished points ({len(computed)} computed in this run); "
+            "run the same command again to compute the rest"
+        ) from None
     if args.json:
         emit_json({"rows": rows})
     else:

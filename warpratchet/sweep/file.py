@@ -37,6 +37,7 @@ from .._files import (
     abandon_h5,
     check_new_path,
     claim,
+    ensure_space,
     publish,
     storage_cause,
     storage_errors,
@@ -176,6 +177,8 @@ class SweepFile:
         """Write the layout with the rows so far beside the path, publish it, keep it open (SWMR)."""
         count = len(self._rows)
         with storage_errors(self.path, "create" if not replace else "write", self._hint()):
+            # The layout is a few kB, each block of 64 records 10 kB: ask for room before HDF5 writes.
+            ensure_space(self.path, 65536 + ROW_DTYPE.itemsize * (count + 64), "the sweep file")
             with temporary_beside(self.path) as tmp:
                 f = h5py.File(tmp, "w", libver=LIBVER, locking=False)
                 try:
@@ -214,6 +217,8 @@ class SweepFile:
             with storage_errors(self.path, "write", self._hint()):
                 rows, valid = f["rows"], f["rows_valid"]
                 n = self._count
+                if n % 64 == 0:  # the first record of a new chunk allocates it
+                    ensure_space(self.path, 64 * ROW_DTYPE.itemsize, "the next rows")
                 # A record past rows_valid is the remnant of an interrupted write: overwrite it.
                 if rows.shape[0] < n + 1:
                     rows.resize((n + 1,))

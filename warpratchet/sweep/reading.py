@@ -16,6 +16,7 @@ import h5py
 import numpy as np
 
 from .._files import open_h5
+from .._h5verify import first_line
 from ..errors import FileFormatError
 from ..params import MapParams
 from ..spec import SweepSpec, attr_value
@@ -29,11 +30,6 @@ __all__ = [
     "definition_mismatch",
     "first_line",
 ]
-
-
-def first_line(exc: BaseException) -> str:
-    text = str(exc).strip() or type(exc).__name__
-    return text.splitlines()[0]
 
 
 def definition_mismatch(f: h5py.File, params: np.ndarray, spec: SweepSpec) -> str | None:
