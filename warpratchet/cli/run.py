@@ -84,6 +84,15 @@ def _archive(args: argparse.Namespace, spec: RunSpec, plan: dict[str, Any]):
     from ..archive import ArchiveSink, ArchiveWarning
     from ..ensemble import Ensemble
 
+    if "resume" in plan and plan["resume"] == spec.steps:  # complete: report it, touch nothing
+        from ..archive import open_archive
+
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ArchiveWarning)
+            with open_archive(args.out) as arc:
+                ensemble = arc.ensemble(threads=spec.threads, device=spec.device)
+        print_warnings(caught)
+        return None, ensemble
     if "resume" in plan:  # the same command again: continue where the archive stands
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ArchiveWarning)
@@ -107,8 +116,9 @@ def command(args: argparse.Namespace) -> int:
     sink = None
     if plan is not None:
         sink, ensemble = _archive(args, spec, plan)
-        observers.append(sink)
-        chunk_steps = sink.chunk_steps
+        if sink is not None:
+            observers.append(sink)
+            chunk_steps = sink.chunk_steps
     else:
         ensemble = Ensemble.sample(
             spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
@@ -132,7 +142,7 @@ def command(args: argparse.Namespace) -> int:
             sink.close()
     seconds = time.perf_counter() - start
     report = run_report(ensemble, seconds, spec.steps - first, spec.threshold)
-    if sink is not None:
+    if plan is not None:
         report["archive"] = args.out
     if recorder is not None and args.rerun is not None:
         report["recording"] = args.rerun
