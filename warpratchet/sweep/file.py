@@ -47,16 +47,9 @@ from .._files import (
 )
 from ..errors import FileFormatError
 from ..spec import SweepSpec, attr_value
+from . import records
 from .reading import definition_mismatch, open_for_reading, read_definition, read_sweep, valid_rows
-from .records import (
-    FORMAT,
-    FORMAT_VERSION,
-    READABLE_VERSIONS,
-    ROW_DESCRIPTIONS,
-    ROW_DTYPE,
-    ROW_FIELDS,
-    to_record,
-)
+from .records import FORMAT, FORMAT_VERSION, READABLE_VERSIONS, ROW_DTYPE, ROW_FIELDS, to_record
 
 # read_sweep and read_definition are re-exported: ``from warpratchet.sweep.file import read_sweep``
 # keeps working.
@@ -96,14 +89,16 @@ def _create(f: h5py.File, params: np.ndarray, spec: SweepSpec, rows: list[dict[s
     )
     parameters.attrs["columns"] = np.bytes_(b"K, b1, b2")
     _describe(parameters, "1", "K, b1, b2 of every point, in sweep order")
-    records = np.array([to_record(row) for row in rows], dtype=ROW_DTYPE).reshape(len(rows))
+    stored = np.array([to_record(row) for row in rows], dtype=ROW_DTYPE).reshape(len(rows))
     ds = f.create_dataset(
-        "rows", data=records, maxshape=(None,), dtype=ROW_DTYPE, chunks=(64,), fletcher32=True
+        "rows", data=stored, maxshape=(None,), dtype=ROW_DTYPE, chunks=(64,), fletcher32=True
     )
     _describe(ds, "see column_units", "one record per finished point, in completion order")
-    ds.attrs["column_units"] = np.array([ROW_DESCRIPTIONS[n][0].encode() for n in ROW_FIELDS], dtype="S16")
+    ds.attrs["column_units"] = np.array(
+        [records.ROW_DESCRIPTIONS[n][0].encode() for n in ROW_FIELDS], dtype="S16"
+    )
     ds.attrs["column_long_names"] = np.array(
-        [ROW_DESCRIPTIONS[n][1].encode() for n in ROW_FIELDS], dtype="S64"
+        [records.ROW_DESCRIPTIONS[n][1].encode() for n in ROW_FIELDS], dtype="S64"
     )
     valid = f.create_dataset("rows_valid", data=np.array([len(rows)], np.int64), chunks=(1,), fletcher32=True)
     _describe(valid, "1", "how many records of rows are complete (raised after them)")
