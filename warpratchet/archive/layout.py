@@ -43,6 +43,7 @@ __all__ = [
     "RUN_SETTINGS",
     "ARCHIVE_SETTINGS",
     "settings_attrs",
+    "run_settings",
     "read_settings",
     "kernel_constants",
     "software_versions",
@@ -81,6 +82,35 @@ def settings_attrs(values: dict[str, Any]) -> dict[str, Any]:
             value = check_setting(name, value)
         out[name] = value
     return {**out, **kernel_constants(), "dtype": "float64"}
+
+
+def run_settings(
+    ensemble: Any,
+    *,
+    threshold: float | None,
+    chunk_steps: int,
+    checkpoint_every: int,
+    snapshot_every: int,
+    snapshot_points: int,
+) -> dict[str, Any]:
+    """The settings of a new archive of ``ensemble`` under RunSpec's names (:func:`read_settings`' form)."""
+    p = ensemble.params
+    return {
+        "K": p.K,
+        "b1": p.b1,
+        "b2": p.b2,
+        "init": ensemble.sampler,
+        "points": ensemble.points,
+        "seed": ensemble.seed,
+        "classifier": "ftle",
+        "threshold": threshold,
+        "threads": ensemble.threads,
+        "device": ensemble.device,
+        "chunk_steps": chunk_steps,
+        "checkpoint_every": checkpoint_every,
+        "snapshot_every": snapshot_every,
+        "snapshot_points": snapshot_points,
+    }
 
 
 def read_settings(attrs: h5py.AttributeManager, version: int) -> dict[str, Any]:

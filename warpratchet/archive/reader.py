@@ -13,22 +13,21 @@ versions 1 and 2 are read (:mod:`.names`).
 
 from __future__ import annotations
 
-import contextlib
 import os
 import warnings
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-import h5py
 import numpy as np
 
 from .._files import open_h5
-from .._h5verify import chunk_past_end, first_line
+from .._h5verify import first_line
 from ..ensemble import STATE_FIELDS, Ensemble
 from ..params import MapParams
 from ..spec import SAMPLERS, RunSpec, attr_value
 from . import progress
+from .checks import check_extent, listed, nonfinite, reading
+from .checks import refresh as _refresh
 from .layout import read_settings
 from .names import (
     COUNTERS,
@@ -41,40 +40,7 @@ from .names import (
     ArchiveWarning,
 )
 
-__all__ = ["Snapshots", "Archive", "open_archive", "first_line", "reading", "nonfinite"]
-
-
-@contextlib.contextmanager
-def reading(path: str, what: str) -> Iterator[None]:
-    """Turn any HDF5/h5py failure while reading ``what`` into one clear :class:`ArchiveError`."""
-    try:
-        yield
-    except ArchiveError:
-        raise
-    except (OSError, KeyError, RuntimeError, ValueError, TypeError, IndexError) as exc:
-        raise ArchiveError(
-            f"{path}: cannot read {what} ({first_line(exc)}); the archive is truncated or corrupted"
-        ) from None
-
-
-def _refresh(ds: h5py.Dataset) -> h5py.Dataset:
-    with contextlib.suppress(Exception):  # only meaningful (and only allowed) in SWMR mode
-        ds.refresh()
-    return ds
-
-
-def check_extent(path: str, ds: h5py.Dataset, rows: int | None = None) -> None:
-    """ArchiveError if a chunk of ``ds`` holding one of its first ``rows`` rows is past the end of
-    the file (HDF5 would read it as zeros with a valid checksum; see ``_h5verify.chunk_past_end``)."""
-    past = chunk_past_end(path, ds, rows)
-    if past is not None:
-        raise ArchiveError(f"{path}: {past}; the archive is truncated or corrupted")
-
-
-def nonfinite(state: dict[str, np.ndarray]) -> dict[str, int]:
-    """How many non-finite values each field of ``state`` holds (only the fields that have some)."""
-    counts = {name: int(np.size(v) - np.count_nonzero(np.isfinite(v))) for name, v in state.items()}
-    return {name: c for name, c in counts.items() if c}
+__all__ = ["Snapshots", "Archive", "open_archive"]
 
 
 @dataclass(frozen=True)
@@ -326,8 +292,7 @@ class Archive:
                     break
                 bad = nonfinite(state)
                 if bad:
-                    listed = ", ".join(f"{count} {field}" for field, count in bad.items())
-                    problems.append(f"checkpoint at step {step} holds non-finite values ({listed})")
+                    problems.append(f"checkpoint at step {step} holds non-finite values ({listed(bad)})")
                     continue
                 self._warn(problems, f"recovered the checkpoint at step {step}")
                 return state, step

@@ -26,9 +26,10 @@ import numpy as np
 
 from ..ensemble import STATE_FIELDS, Ensemble
 from ..spec import SAMPLERS
+from .checks import reading
 from .layout import kernel_constants
 from .names import COUNTERS, FORMAT_VERSION, SERIES_FIELDS, SNAPSHOT_FIELDS, ArchiveError, ArchiveWarning
-from .reader import Archive, Snapshots, reading
+from .reader import Archive, Snapshots
 
 __all__ = ["Salvage", "salvage"]
 

@@ -15,8 +15,9 @@ from typing import Any
 import numpy as np
 
 from .._h5verify import first_line, read_everything
+from .checks import listed, nonfinite
 from .names import COUNTERS, SLOTS, ArchiveError
-from .reader import Archive, nonfinite
+from .reader import Archive
 
 __all__ = ["verify_archive"]
 
@@ -85,6 +86,5 @@ def verify_archive(path: str | os.PathLike) -> tuple[list[str], dict[str, Any]]:
             except (ArchiveError, KeyError):
                 continue  # reported above
             if bad:
-                listed = ", ".join(f"{count} non-finite {field}" for field, count in bad.items())
-                problems.append(f"{label} holds {listed}; resume skips it")
+                problems.append(f"{label} holds non-finite values ({listed(bad)}); resume skips it")
     return problems, checked

@@ -1,31 +1,19 @@
 """Writing an archive: :class:`ArchiveSink`, the observer that streams a run into the file.
 
-How it stays consistent (a kill can land between any two writes):
-
-* the whole layout is created up front (:func:`~warpratchet.archive.layout.create`), then the
-  file switches to SWMR (single writer, multiple readers) so that other processes can read it
-  while it grows;
-* rows (time series, snapshots) are appended and flushed *before* the ``n_valid`` counter that
-  makes them visible is bumped and flushed: a reader never sees a row that is not on disk;
-* the full state is checkpointed into one of two slots, the one *not* holding the newest
-  checkpoint: its ``step`` is set to -1, the state written, flushed and fsynced, then ``step``
-  and the ``current`` pointer are written. The previous checkpoint stays intact until a newer
-  one is complete;
-* every raw chunk carries a Fletcher-32 checksum (:mod:`.layout`) and, with the HDF5 1.10 object
-  formats (:data:`warpratchet._files.LIBVER`), every piece of HDF5 metadata carries its own:
-  flipped bytes give an error, never silently wrong numbers;
-* a state with non-finite values is never checkpointed (:class:`NonFiniteStateError`), and a
-  write the system refuses (a full disk) abandons the file as the last successful flush left it
-  (:func:`warpratchet._files.abandon_h5`): resumable once there is space, like a killed run's;
-* a new file is built under a temporary name and published with ``link`` (or ``replace`` for
-  ``force=True``), so the path never holds half an archive (:mod:`warpratchet._files`).
-  :meth:`ArchiveSink.resume` rebuilds the archive the same way from its newest good checkpoint
-  (:mod:`.resume`), which also clears the "open for writing" mark a killed SWMR writer leaves.
+How it stays consistent (a kill can land between any two writes; docs/archive.md has the whole
+story): the layout is created up front and the file switches to SWMR so that others can read
+it while it grows; rows are flushed *before* the ``/progress`` counter that makes them valid;
+the state is checkpointed into the slot *not* holding the newest checkpoint (its ``step`` -1,
+the data fsynced, then ``step`` and ``current``); every chunk and every piece of metadata is
+checksummed (Fletcher-32, HDF5 1.10 formats); a non-finite state is never checkpointed
+(:class:`NonFiniteStateError`); free space is checked before each allocating write, and a
+write the system refuses abandons the file as its last successful flush left it (resumable,
+like a killed run's); a new or rebuilt file is published atomically (:mod:`warpratchet._files`).
 
 A writer holds a shared ``flock`` on the file for its lifetime; :meth:`ArchiveSink.resume` and
 ``force=True`` need an exclusive one, so they refuse to touch a file that a live run (or an open
-reader) is using. The observables written per chunk are those of Eqs. (An) and the FTLE, see
-:mod:`warpratchet.observables`.
+reader) is using. The observables written per chunk are those of Eqs. (An) and the FTLE
+(:mod:`warpratchet.observables`).
 """
 
 from __future__ import annotations
@@ -57,6 +45,7 @@ from ..ensemble import STATE_FIELDS, Ensemble, Observer
 from ..errors import check_count, check_optional, check_real
 from ..observables import acceleration, lyapunov, summarize
 from . import layout
+from .checks import listed, nonfinite
 from .chunking import schedule, sink_min_chunk_steps
 from .names import (
     COUNTERS,
@@ -67,8 +56,7 @@ from .names import (
     ArchiveError,
     NonFiniteStateError,
 )
-from .reader import nonfinite
-from .resume import salvage
+from .reopen import reopen
 from .rows import Rows, set_counter
 
 __all__ = ["ArchiveSink", "NonFiniteStateError"]
@@ -163,7 +151,7 @@ class ArchiveSink(Observer):
         bad = nonfinite(initial)
         if bad:
             raise NonFiniteStateError(
-                f"{path}: the state at step {ensemble.step} is not finite ({_listed(bad)})"
+                f"{path}: the state at step {ensemble.step} is not finite ({listed(bad)} non-finite)"
             )
         with _as_archive_error():
             old_fd = claim(path, exclusive=True) if exists else None
@@ -171,23 +159,14 @@ class ArchiveSink(Observer):
             m = min(snapshot_points, ensemble.points) if snapshot_every else 0
             rng = np.random.default_rng([_SNAPSHOT_SALT, ensemble.seed or 0])
             indices = np.sort(rng.choice(ensemble.points, size=m, replace=False)).astype(np.int64)
-            p = ensemble.params
-            settings = {
-                "K": p.K,
-                "b1": p.b1,
-                "b2": p.b2,
-                "init": ensemble.sampler,
-                "points": ensemble.points,
-                "seed": ensemble.seed,
-                "classifier": "ftle",
-                "threshold": threshold,
-                "threads": ensemble.threads,
-                "device": ensemble.device,
-                "chunk_steps": chunk_steps,
-                "checkpoint_every": checkpoint_every,
-                "snapshot_every": snapshot_every,
-                "snapshot_points": m,
-            }
+            settings = layout.run_settings(
+                ensemble,
+                threshold=threshold,
+                chunk_steps=chunk_steps,
+                checkpoint_every=checkpoint_every,
+                snapshot_every=snapshot_every,
+                snapshot_points=m,
+            )
             contents = {
                 "params": ensemble.params,
                 "settings": settings,
@@ -265,56 +244,8 @@ class ArchiveSink(Observer):
         self._failed = False
         self._current = int(f["checkpoint"]["current"][0])
 
-    # -- resume -----------------------------------------------------------------------------------
-    @classmethod
-    def resume(
-        cls, path: str | os.PathLike, *, threads: int | None = None, device: str | None = None
-    ) -> tuple[ArchiveSink, Ensemble]:
-        """Reopen an archive for appending, from its newest good checkpoint.
-
-        The archive is rebuilt under a temporary name from what is valid (metadata, initial
-        state, series rows and snapshots up to the checkpoint, the checkpoint; see
-        :mod:`warpratchet.archive.resume`) and atomically put in place of the old file, so a
-        kill during ``resume`` loses nothing either. A damaged checkpoint, snapshot, series row
-        or initial state is skipped and named in an :class:`ArchiveWarning`. A format v1 archive
-        is rebuilt in today's format.
-
-        Returns
-        -------
-        (ArchiveSink, Ensemble)
-            The sink and the ensemble restored bit for bit at the checkpoint step; continue with
-            ``run_to(ensemble, total, [sink], sink.chunk_steps)``.
-
-        Raises
-        ------
-        ArchiveError
-            Missing, unreadable or incompatible archive (format version, renormalisation
-            constants of the kernel), or a file in use by another process.
-        """
-        path = os.fspath(path)
-        if not os.path.exists(path):
-            raise ArchiveError(f"{path}: no such archive")
-        with _as_archive_error():
-            old_fd = claim(path, exclusive=True)
-        try:
-            old = salvage(path, threads=threads, device=device)
-            sink = cls.__new__(cls)
-            sink._build(
-                path,
-                old.layout,
-                old.ensemble,
-                replace=True,
-                keep_mode=True,
-                fill=old.write,
-                rows=old.rows,
-                snaps=len(old.snapshots),
-                needed=os.path.getsize(path),  # a rebuilt copy is about as large
-            )
-        finally:
-            os.close(old_fd)
-        sink.checkpoint_step = old.step
-        sink._last_snapshot = old.step
-        return sink, old.ensemble
+    #: Reopen an archive for appending from its newest good checkpoint (:func:`.reopen.reopen`).
+    resume = classmethod(reopen)
 
     # -- the observer -----------------------------------------------------------------------------
     @contextlib.contextmanager
@@ -422,7 +353,7 @@ class ArchiveSink(Observer):
         if bad:
             self._failed = True
             raise NonFiniteStateError(
-                f"{self.path}: the state at step {ensemble.step} is not finite ({_listed(bad)}; "
+                f"{self.path}: the state at step {ensemble.step} is not finite ({listed(bad)} non-finite; "
                 "b1 or b2 too small for float64?); not checkpointed: the archive keeps its checkpoint "
                 f"at step {self.checkpoint_step}"
             )
@@ -468,7 +399,3 @@ class ArchiveSink(Observer):
         return (
             f"ArchiveSink({self.path!r}, rows={self._series.count}, checkpoint_step={self.checkpoint_step})"
         )
-
-
-def _listed(counts: dict[str, int]) -> str:
-    return ", ".join(f"{count} non-finite {field}" for field, count in counts.items())
