@@ -506,3 +506,25 @@ def test_overhead_benchmark_runs_and_archiving_changes_nothing():
     for case in report["cases"]:
         assert case["identical"] and case["rows"] >= 1 and case["file_bytes"] > 0
         assert case["wall_ratio"] > 0 and 0 < case["sink_share_of_kernel"]
+
+
+def test_settings_are_runspec_attributes(archived):
+    """/settings is RunSpec.to_attrs() (init, not sampler; the default threshold absent, not NaN)."""
+    from warpratchet.spec import RunSpec
+
+    path, ens, _ = archived
+    with h5py.File(path, "r") as f:
+        attrs = dict(f["settings"].attrs)
+        target = int(f["progress/target_step"][0])
+    assert "sampler" not in attrs and attrs["init"] == b"strip" and "threshold" not in attrs
+    assert target == 1000
+    with open_archive(path) as arc:
+        spec = arc.spec
+    want = RunSpec(
+        K=3.0, b1=0.1, b2=0.01, points=POINTS, seed=SEED, steps=1000, chunk_steps=100,
+        threads=ens.threads, device=ens.device,
+    )  # fmt: skip
+    assert spec == want
+    stored = RunSpec(**{k: v for k, v in want.as_dict().items()}).to_attrs()
+    stored.pop("steps")
+    assert {k: (v.decode() if isinstance(v, bytes) else v) for k, v in attrs.items() if k in stored} == stored

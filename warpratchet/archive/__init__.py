@@ -37,6 +37,7 @@ from .names import (
     NonFiniteStateError,
 )
 from .reader import Archive, Snapshots, open_archive
+from .verify import verify_archive
 from .writer import ArchiveSink
 
 __all__ = [
@@ -56,6 +57,7 @@ __all__ = [
     "Snapshots",
     "ArchiveSink",
     "open_archive",
+    "verify_archive",
     "schedule",
     "run_to",
 ]

@@ -31,6 +31,7 @@ from .records import (
     TIMING_FIELDS,
 )
 from .run import point_seed, run_point, run_sweep
+from .verify import verify_sweep
 
 __all__ = [
     "SweepSpec",
@@ -45,6 +46,7 @@ __all__ = [
     "run_sweep",
     "read_sweep",
     "read_definition",
+    "verify_sweep",
     "ROW_DTYPE",
     "ROW_FIELDS",
     "TIMING_FIELDS",
