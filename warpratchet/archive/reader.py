@@ -282,7 +282,11 @@ class Archive:
                 try:
                     state = self.read_state(f"checkpoint/{name}")
                 except ArchiveError as exc:
-                    if self._slot_step(name) != step:  # recycled meanwhile: a torn read, not damage
+                    try:
+                        again = self._slot_step(name)
+                    except ArchiveError:
+                        again = step
+                    if again != step:  # recycled meanwhile: a torn read, not damage
                         retry = True
                         break
                     problems.append(f"checkpoint at step {step} is unreadable ({exc})")
