@@ -291,7 +291,12 @@ class Archive:
                         break
                     problems.append(f"checkpoint at step {step} is unreadable ({exc})")
                     continue
-                if self._slot_step(name) != step:  # overwritten while we read: start over
+                try:
+                    again = self._slot_step(name)
+                except ArchiveError as exc:
+                    problems.append(f"checkpoint at step {step} is unreadable ({exc})")
+                    continue
+                if again != step:  # overwritten while we read: start over
                     retry = True
                     break
                 bad = nonfinite(state)
