@@ -330,8 +330,6 @@ class Archive:
             seed=self.settings["seed"],
         )
 
-    _restore = restore
-
     def ensemble(self, threads: int | None = None, device: str | None = None) -> Ensemble:
         """An :class:`Ensemble` restored bit for bit at the newest good checkpoint."""
         state, step = self.checkpoint()
@@ -339,10 +337,7 @@ class Archive:
 
     def latest(self) -> dict[str, float | int] | None:
         """The last series row as a dict (None before the first chunk)."""
-        series = self.series
-        if series["step"].size == 0:
-            return None
-        return {name: values[-1].item() for name, values in series.items()}
+        return _last_row(self.series)
 
     def info(self) -> dict[str, Any]:
         """Everything ``warpratchet inspect`` shows: metadata, progress (with an ETA), latest summary."""
@@ -361,7 +356,7 @@ class Archive:
             "checkpoint_step": checkpoint_step,
             "rows": int(series["step"].size),
             "snapshots": self.snapshot_count,
-            "latest": None if series["step"].size == 0 else {k: v[-1].item() for k, v in series.items()},
+            "latest": _last_row(series),
             **progress.estimate(series, self.target_step, self.initial_step),
         }
 
@@ -391,6 +386,10 @@ class Archive:
     def __repr__(self) -> str:
         p = self.params
         return f"Archive({self.path!r}, K={p.K!r}, b1={p.b1!r}, b2={p.b2!r}, points={self.points})"
+
+
+def _last_row(series: dict[str, np.ndarray]) -> dict[str, float | int] | None:
+    return None if series["step"].size == 0 else {k: v[-1].item() for k, v in series.items()}
 
 
 def open_archive(path: str | os.PathLike) -> Archive:
