@@ -40,7 +40,7 @@ ROW_SHARE = 0.005
 #: Seconds of HDF5 work per series row besides the summary (eleven row writes, two flushes).
 ROW_IO_SECONDS = 1e-3
 #: Points and steps of the probe that measures the kernel against the summary.
-_PROBE_POINTS, _PROBE_STEPS = 1 << 14, 64
+_PROBE_POINTS, _PROBE_STEPS = 1 << 12, 64
 
 
 def _nice_at_least(value: float) -> int:
@@ -67,7 +67,7 @@ def sink_min_chunk_steps(ensemble: Ensemble) -> int:
     A row costs a summary of every point (Eqs. An and the FTLE, NumPy on one core) plus
     :data:`ROW_IO_SECONDS` of HDF5 work; a chunk costs ``points * chunk_steps`` kernel
     point-steps on ``ensemble.threads`` threads. Both speeds are measured here, on a copy of up to
-    16384 of the ensemble's points (a few milliseconds), so the chunk follows the kernel: a 3x
+    4096 of the ensemble's points (a few milliseconds), so the chunk follows the kernel: a 3x
     faster kernel gets 3x longer default chunks instead of a 3x larger archive overhead. Rounded
     up to 1, 2 or 5 times a power of ten. The ensemble is not advanced.
     """
