@@ -14,6 +14,7 @@ started. Strings are fixed-length attributes, stored inside the (checksummed) ob
 
 from __future__ import annotations
 
+import functools
 import math
 import platform
 from importlib.metadata import PackageNotFoundError
@@ -22,7 +23,7 @@ from typing import Any
 
 import h5py
 import numpy as np
-from h5py import h5g, h5p
+from h5py import h5a, h5g, h5p, h5s, h5t
 
 from .._files import compact_links
 from ..ensemble import RENORM_CHECK_EVERY, RENORM_THRESHOLD, STATE_FIELDS
@@ -136,6 +137,7 @@ def kernel_constants() -> dict[str, Any]:
     return {"renorm_threshold": RENORM_THRESHOLD, "renorm_check_every": RENORM_CHECK_EVERY}
 
 
+@functools.cache
 def software_versions() -> dict[str, str]:
     """The ``/versions`` attributes: the software of the process creating the archive."""
 
@@ -260,6 +262,20 @@ def _group(parent: h5py.Group, name: str) -> h5py.Group:
 
 def _set_attrs(obj: h5py.HLObject, values: dict[str, Any]) -> None:
     """Attributes, strings as fixed-length UTF-8 (stored in the checksummed header, unlike the
-    variable-length strings h5py writes by default, which live in an unchecked global heap)."""
+    variable-length strings h5py writes by default, which live in an unchecked global heap).
+
+    Written with HDF5's low-level calls: a layout has ~120 attributes, and h5py's ``attrs[key] =``
+    (~70 us each) was a third of the time it takes to create an archive.
+    """
+    scalar = h5s.create(h5s.SCALAR)
     for key, value in values.items():
-        obj.attrs[key] = np.bytes_(value.encode()) if isinstance(value, str) else value
+        data = np.asarray(np.bytes_(value.encode()) if isinstance(value, str) else value)
+        if data.dtype.kind == "S" and data.itemsize == 0:
+            data = np.asarray(np.bytes_(b""), dtype="S1")  # HDF5 has no zero-length string type
+        if data.shape != () or data.dtype.kind not in "biufS":
+            obj.attrs[key] = value  # anything else the usual way
+            continue
+        if h5a.exists(obj.id, key.encode()):
+            h5a.delete(obj.id, key.encode())
+        attr = h5a.create(obj.id, key.encode(), h5t.py_create(data.dtype), scalar)
+        attr.write(np.ascontiguousarray(data))
