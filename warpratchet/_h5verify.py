@@ -54,11 +54,18 @@ def read_everything(f: h5py.File, path: str, problems: list[str]) -> dict[str, i
     counts = {"datasets": 0, "attributes": 0, "bytes": 0}
     names: list[str] = []
 
-    def visit(name: str) -> None:
-        names.append(name)
+    def walk(group: h5py.Group, prefix: str) -> None:
+        # Links by name (H5Literate), not h5py's visit (H5Ovisit): that one also sums every
+        # object's storage, walking chunk indices, and crashed HDF5 on a damaged B-tree header.
+        for key in group:
+            name = f"{prefix}{key}"
+            names.append(name)
+            obj = group.get(key, getlink=True)
+            if isinstance(obj, h5py.HardLink) and isinstance(group[key], h5py.Group):
+                walk(group[key], f"{name}/")
 
     try:
-        f.visit(visit)
+        walk(f, "")
     except (OSError, KeyError, RuntimeError) as exc:
         problems.append(f"the file's structure is damaged ({first_line(exc)})")
     for name in ["", *names]:
