@@ -66,23 +66,36 @@ def sink_min_chunk_steps(ensemble: Ensemble) -> int:
 
     A row costs a summary of every point (Eqs. An and the FTLE, NumPy on one core) plus
     :data:`ROW_IO_SECONDS` of HDF5 work; a chunk costs ``points * chunk_steps`` kernel
-    point-steps on ``ensemble.threads`` threads. Both speeds are measured here, on a copy of up to
-    4096 of the ensemble's points (a few milliseconds), so the chunk follows the kernel: a 3x
-    faster kernel gets 3x longer default chunks instead of a 3x larger archive overhead. Rounded
-    up to 1, 2 or 5 times a power of ten. The ensemble is not advanced.
+    point-steps on ``ensemble.threads`` threads. Both speeds are measured once per process,
+    kind of ensemble, device and thread count (:func:`_seconds_per_point`, ~5 ms on a copy of up
+    to 4096 of the ensemble's points), so the chunk follows the kernel: a 3x faster kernel gets
+    3x longer default chunks instead of a 3x larger archive overhead. Rounded up to 1, 2 or 5
+    times a power of ten. The ensemble is not advanced.
     """
-    n = min(ensemble.points, _PROBE_POINTS)
-    state = {name: ensemble.array(name)[:n].copy() for name in STATE_FIELDS}
-    probe = Ensemble.from_state(ensemble.params, state, ensemble.step, device=ensemble.device, threads=1)
-    probe.run(_PROBE_STEPS, chunk_steps=_PROBE_STEPS)  # loads the kernel before timing it
-    kernel = _best_seconds(lambda: probe.run(_PROBE_STEPS, chunk_steps=_PROBE_STEPS)) / (n * _PROBE_STEPS)
-    sample = probe.state()
-    step = max(probe.step, 1)
-    summary = _best_seconds(lambda: _quiet_summary(sample, step)) / n
+    summary, kernel = _seconds_per_point(ensemble)
     threads = max(1, min(ensemble.threads, ensemble.points))
     row = summary * ensemble.points + ROW_IO_SECONDS
     chunk_seconds_per_step = kernel * ensemble.points / threads
     return _nice_at_least(row / (ROW_SHARE * chunk_seconds_per_step))
+
+
+_MEASURED: dict[tuple, tuple[float, float]] = {}
+
+
+def _seconds_per_point(ensemble: Ensemble) -> tuple[float, float]:
+    """``(summary seconds per point, kernel seconds per point-step on one thread)``, cached."""
+    key = (type(ensemble), ensemble.device, ensemble.params)
+    if key not in _MEASURED:
+        n = min(ensemble.points, _PROBE_POINTS)
+        state = {name: ensemble.array(name)[:n].copy() for name in STATE_FIELDS}
+        probe = Ensemble.from_state(ensemble.params, state, ensemble.step, device=ensemble.device, threads=1)
+        probe.run(_PROBE_STEPS, chunk_steps=_PROBE_STEPS)  # loads the kernel before timing it
+        run = _best_seconds(lambda: probe.run(_PROBE_STEPS, chunk_steps=_PROBE_STEPS))
+        sample = probe.state()
+        step = max(probe.step, 1)
+        summary = _best_seconds(lambda: _quiet_summary(sample, step)) / n
+        _MEASURED[key] = (summary, run / (n * _PROBE_STEPS))
+    return _MEASURED[key]
 
 
 def _quiet_summary(state, step) -> None:
