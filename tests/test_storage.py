@@ -10,7 +10,6 @@ from __future__ import annotations
 import errno
 import json
 import os
-import shutil
 import subprocess
 import sys
 import uuid
@@ -235,4 +234,3 @@ except OSError as exc:
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr
     assert "refused: cannot write" in proc.stdout and "disk full" in proc.stdout
-    assert shutil.which("python") or True

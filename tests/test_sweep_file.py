@@ -12,7 +12,6 @@ import time
 import h5py
 import numpy as np
 import pytest
-from support import MAP_FLAGS
 
 from warpratchet import sweep as sweep_module
 from warpratchet.cli import main
@@ -134,7 +133,3 @@ def test_read_sweep_while_a_sweep_writes(tmp_path):
     assert proc.returncode == 0, err
     assert len(read_sweep(path)) == 12
     assert reads > 10 and len(seen) > 2, (reads, seen)
-
-
-def test_cli_flags_of_the_map_are_shared():
-    assert MAP_FLAGS[0] == "--K"  # the support module is importable from this test module
