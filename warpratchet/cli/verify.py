@@ -45,6 +45,12 @@ def command(args: argparse.Namespace) -> int:
     with open(path, "rb") as fh:
         if fh.read(8) != _HDF5_SIGNATURE:
             raise UsageError(f"verify: {path} is not an HDF5 file (not an archive or sweep file)")
+    from .._files import claim
+
+    try:  # a file a run is writing may show a write in progress: verify it once the run is done
+        os.close(claim(path, exclusive=True))
+    except BlockingIOError as exc:
+        raise UsageError(f"verify: {exc}") from None
     checked: dict = {}
     try:
         kind = _kind(path)
