@@ -219,3 +219,11 @@ def test_non_finite_checkpoints_of_release_0_1_are_reported(tmp_path, capsys):
         sink, ens = ArchiveSink.resume(path, threads=1)
     sink.close()
     assert ens.step == 256  # the older, finite checkpoint
+
+
+def test_verify_refuses_a_file_a_run_is_writing(tmp_path, capsys):
+    path = tmp_path / "live.h5"
+    with ArchiveSink(path, fresh(), chunk_steps=100):
+        assert main(["verify", str(path)]) == 2
+        assert "in use by another process" in capsys.readouterr().err
+    assert main(["verify", str(path)]) == 0
