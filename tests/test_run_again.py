@@ -46,8 +46,17 @@ def test_the_same_command_again_resumes(tmp_path):
     start = time.monotonic()
     while proc.poll() is None and _rows(out) < 30 and time.monotonic() - start < 60:
         time.sleep(0.01)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=60)
+    # Ctrl-C until it stops: Python drops a KeyboardInterrupt that lands while an object is
+    # being released (h5py's handles, ~1 in many thousands here); a user would press it again.
+    for _ in range(5):
+        proc.send_signal(signal.SIGINT)
+        try:
+            _, err = proc.communicate(timeout=5)
+            break
+        except subprocess.TimeoutExpired:
+            continue
+    else:
+        _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and f"{out} keeps the checkpoint at step" in err
     assert "run the same command again to continue" in err
