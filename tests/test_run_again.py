@@ -51,7 +51,7 @@ def test_the_same_command_again_resumes(tmp_path):
     for _ in range(5):
         proc.send_signal(signal.SIGINT)
         try:
-            _, err = proc.communicate(timeout=1)
+            _, err = proc.communicate(timeout=3)
             break
         except subprocess.TimeoutExpired:
             continue
