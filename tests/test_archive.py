@@ -84,7 +84,7 @@ def test_archive_holds_the_run(archived):
     with open_archive(path) as arc:
         assert arc.params == PARAMS
         s = arc.settings
-        assert (s["points"], s["sampler"], s["seed"], s["chunk_steps"]) == (POINTS, "strip", SEED, 100)
+        assert (s["points"], s["init"], s["seed"], s["chunk_steps"]) == (POINTS, "strip", SEED, 100)
         assert (s["checkpoint_every"], s["snapshot_every"], s["snapshot_points"]) == (400, 200, 40)
         assert s["threshold"] is None and s["dtype"] == "float64" and s["renorm_check_every"] == 8
         assert {"warpratchet", "warp", "numpy", "h5py"} <= set(arc.versions)
@@ -223,8 +223,8 @@ def test_incompatible_format_version_is_refused(tmp_path, archived):
     path = tmp_path / "future.h5"
     shutil.copy(archived[0], path)
     with h5py.File(path, "r+") as f:
-        f.attrs["format_version"] = 2
-    with pytest.raises(ArchiveError, match="format version 2 is not supported"):
+        f.attrs["format_version"] = 3
+    with pytest.raises(ArchiveError, match="format version 3 is not supported"):
         open_archive(path)
     assert_one_line_error(cli("resume", str(path), "--steps", "5000"))
     with pytest.raises(ArchiveError, match="not a warpratchet archive"):
@@ -245,27 +245,67 @@ def _documented_names() -> set[str]:
     return names
 
 
+#: Attributes every dataset carries (units, description) or that mark HDF5 dimension scales:
+#: documented once in prose, checked by test_every_dataset_describes_itself.
+DATASET_ATTRS = {"units", "long_name", "CLASS", "NAME", "REFERENCE_LIST", "DIMENSION_LIST"}
+
+
 def _written_names(path) -> set[str]:
     names = set()
     with h5py.File(path, "r") as f:
 
         def add(name, obj):
             names.add(f"/{name}")
-            names.update(f"/{name}@{key}" for key in obj.attrs)
+            skip = DATASET_ATTRS if isinstance(obj, h5py.Dataset) else set()
+            names.update(f"/{name}@{key}" for key in obj.attrs if key not in skip)
 
         names.update(f"/@{key}" for key in f.attrs)
         f.visititems(add)
     return names
 
 
-def test_docs_match_the_file(archived):
+def _documented_optional() -> set[str]:
+    """Attributes the table documents as absent for a run-dependent default (RunSpec's rule)."""
+    return {
+        m.group(1)
+        for line in DOC.read_text().splitlines()
+        if (m := re.match(r"\|\s*`(/[^`]*@[^`]*)`\s*\|.*\babsent\b", line))
+    }
+
+
+def test_docs_match_the_file(archived, tmp_path):
     documented = _documented_names()
     assert len(documented) > 60  # the table was found and parsed
+    optional = _documented_optional()
+    assert optional == {"/settings@seed", "/settings@threshold"}
     written = _written_names(archived[0])
-    assert documented - written == set(), "documented but not written"
+    assert documented - written <= optional, "documented but not written"
     assert written - documented == set(), "written but not documented"
+    ens = Ensemble(PARAMS, np.full(4, 0.2), np.full(4, 0.3))  # no seed, an explicit threshold
+    ArchiveSink(tmp_path / "user.h5", ens, threshold=0.5, chunk_steps=10).close()
+    other = _written_names(tmp_path / "user.h5")
+    assert documented - other == {"/settings@seed"} and written - other == {"/settings@seed"}
     text = DOC.read_text()
-    assert "warpratchet-archive" in text and "version 1" in text
+    assert "warpratchet-archive" in text and "version 2" in text
+
+
+def test_every_dataset_describes_itself(archived):
+    """units and long_name everywhere; the time axes are dimension scales attached to their data."""
+    with h5py.File(archived[0], "r") as f:
+        datasets = []
+        f.visititems(lambda name, obj: datasets.append(obj) if isinstance(obj, h5py.Dataset) else None)
+        assert len(datasets) > 30
+        for ds in datasets:
+            assert ds.attrs["units"] and ds.attrs["long_name"], ds.name
+            assert ds.fletcher32, ds.name
+        for name in SERIES_FIELDS[1:]:
+            assert f["series"][name].dims[0][0] == f["series/step"], name
+        for name in ("x", "p", "ftle", "A"):
+            dims = f["snapshots"][name].dims
+            assert dims[0][0] == f["snapshots/step"] and dims[1][0] == f["snapshots/indices"], name
+        # Closed: exactly the valid rows, no allocated zeros past them.
+        assert f["series/step"].shape == (int(f["progress/series_rows"][0]),) == (10,)
+        assert f["snapshots/x"].shape == (int(f["progress/snapshot_rows"][0]), 40) == (5, 40)
 
 
 # -- truncated and corrupted files -----------------------------------------------------------------
@@ -421,7 +461,7 @@ def test_cli_run_resume_inspect(tmp_path, capsys):
     assert main(["inspect", path, "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["checkpoint_step"] == 1000 and info["rows"] == 5 and info["snapshots"] == 5
-    assert info["latest"]["A"] == s.A and info["params"]["K"] == 3.0 and info["format_version"] == 1
+    assert info["latest"]["A"] == s.A and info["params"]["K"] == 3.0 and info["format_version"] == 2
     assert main(["inspect", path]) == 0
     text = capsys.readouterr().out
     assert "checkpoint at step 1000" in text and "K = 3.0" in text
@@ -466,3 +506,25 @@ def test_overhead_benchmark_runs_and_archiving_changes_nothing():
     for case in report["cases"]:
         assert case["identical"] and case["rows"] >= 1 and case["file_bytes"] > 0
         assert case["wall_ratio"] > 0 and 0 < case["sink_share_of_kernel"]
+
+
+def test_settings_are_runspec_attributes(archived):
+    """/settings is RunSpec.to_attrs() (init, not sampler; the default threshold absent, not NaN)."""
+    from warpratchet.spec import RunSpec
+
+    path, ens, _ = archived
+    with h5py.File(path, "r") as f:
+        attrs = dict(f["settings"].attrs)
+        target = int(f["progress/target_step"][0])
+    assert "sampler" not in attrs and attrs["init"] == b"strip" and "threshold" not in attrs
+    assert target == 1000
+    with open_archive(path) as arc:
+        spec = arc.spec
+    want = RunSpec(
+        K=3.0, b1=0.1, b2=0.01, points=POINTS, seed=SEED, steps=1000, chunk_steps=100,
+        threads=ens.threads, device=ens.device,
+    )  # fmt: skip
+    assert spec == want
+    stored = RunSpec(**{k: v for k, v in want.as_dict().items()}).to_attrs()
+    stored.pop("steps")
+    assert {k: (v.decode() if isinstance(v, bytes) else v) for k, v in attrs.items() if k in stored} == stored

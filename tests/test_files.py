@@ -87,3 +87,30 @@ def test_h5_reader_opens_a_file_a_writer_left_open_in_swmr_mode(tmp_path):
         assert r["n"][0] == 7
     with open_h5_reader(path) as r:  # closed cleanly: opens normally
         assert r["n"][0] == 7
+
+
+def test_writer_marked_reads_the_superblock_flags(tmp_path):
+    """open_h5 decides SWMR-read from the superblock's mark, never from a failed normal open: HDF5
+    checks a live file's size before its mark, and a live writer's allocated-but-unwritten tail
+    gave readers a false "truncated file" (issue 13.4)."""
+    from warpratchet._files import LIBVER, open_h5, writer_marked
+
+    live, killed, closed, old = (tmp_path / n for n in ("live.h5", "killed.h5", "closed.h5", "old.h5"))
+    with h5py.File(live, "w", libver=LIBVER) as f:
+        f.create_dataset("n", data=np.array([3], np.int64), chunks=(1,), maxshape=(None,))
+        f.swmr_mode = True
+        sync_h5(f)
+        assert writer_marked(live)
+        shutil.copy(live, killed)
+    assert writer_marked(killed) and not writer_marked(live)
+    shutil.copy(live, closed)
+    with h5py.File(old, "w") as f:  # HDF5's earliest format: superblock v0, no such mark
+        f["n"] = 1
+    assert not writer_marked(old) and not writer_marked(closed)
+    for path in (killed, closed, old):
+        with open_h5(path) as f:
+            assert int(np.asarray(f["n"][()]).ravel()[0]) in (1, 3)
+    # A truncated file that no writer has open is still an error at once.
+    closed.write_bytes(closed.read_bytes()[:-64])
+    with pytest.raises(OSError, match="truncated file"):
+        open_h5(closed)

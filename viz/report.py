@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import sys
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from warpratchet import __version__, paper, theory
+from warpratchet._files import publish, temporary_beside
 
 from .checks import (
     REQUIRED,
@@ -233,19 +234,15 @@ def write_report(sweeps_dir: Path, out: Path, force: bool = False, threads: int 
         raise ValueError(f"{out} exists and was not written by viz.report; pass --force to replace it")
     text = render(load_sweeps(sweeps_dir), census_block(existing), str(sweeps_dir), threads)
     out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", dir=out.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
+    # Written beside, made durable, renamed into place (warpratchet._files: one implementation).
+    with temporary_beside(out) as tmp:
+        if out.exists():
+            shutil.copymode(out, tmp)  # a replaced report keeps its permissions
+        with open(tmp, "w", encoding="utf-8") as f:
             f.write(text)
-        # mkstemp makes the file private; give it the mode a plain open() would (or the old file's).
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, out.stat().st_mode & 0o777 if out.exists() else 0o666 & ~umask)
-        os.replace(tmp, out)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+            f.flush()
+            os.fsync(f.fileno())
+        publish(tmp, out, replace=True)
     return text
 
 

@@ -11,27 +11,40 @@
 * **Advisory locks** (:func:`try_lock`, :func:`claim`): ``flock`` on a descriptor; a writer holds
   a shared lock, and whoever replaces or rebuilds a file needs an exclusive one, so a file that
   a live process uses is never touched.
-* **HDF5** (:func:`sync_h5`, :func:`open_h5_reader`): flush-and-fsync of an open file, and the
-  reader options for files that another process may be writing (SWMR with bounded retries, no
-  raw-chunk cache).
+* **HDF5** (:data:`LIBVER`, :func:`sync_h5`, :func:`open_h5_reader`, :func:`open_h5`, in
+  :mod:`warpratchet._h5`): the file format every writer pins, flush-and-fsync of an open file,
+  and opening a file that another process may be writing (SWMR-read when the file says a writer
+  has it open, with bounded retries, no raw-chunk cache).
+* **Storage failures** (:func:`storage_errors`, :class:`StorageError`, :func:`ensure_space`, in
+  :mod:`warpratchet._storage`): a full disk, a read-only folder or a missing permission becomes
+  one line naming the file and the cause.
 
 Errors are the standard ``OSError`` subclasses with a one-line message naming the path
-(``FileExistsError``, ``FileNotFoundError``, ``BlockingIOError`` for a file in use); callers
-with their own error type (e.g. :class:`warpratchet.archive.ArchiveError`) wrap them.
+(``FileExistsError``, ``FileNotFoundError``, ``BlockingIOError`` for a file in use,
+:class:`StorageError` for a write the system refused); callers with their own error type (e.g.
+:class:`warpratchet.archive.ArchiveError`) wrap the first three.
 """
 
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import functools
 import os
-import re
 import tempfile
 from collections.abc import Iterator
 
-import h5py
-from h5py import h5f, h5p
+# The HDF5 side and the storage failures live in modules of their own; their names are
+# re-exported here, where every writer has always found them.
+from ._h5 import (
+    LIBVER,
+    SWMR_READ_ATTEMPTS,
+    abandon_h5,
+    compact_links,
+    open_h5,
+    open_h5_reader,
+    sync_h5,
+    writer_marked,
+)
+from ._storage import SPACE_MARGIN, StorageError, ensure_space, storage_cause, storage_errors
 
 try:  # advisory locks; absent on Windows, where files are simply not locked
     import fcntl
@@ -46,8 +59,18 @@ __all__ = [
     "try_lock",
     "claim",
     "sync_h5",
+    "LIBVER",
     "SWMR_READ_ATTEMPTS",
     "open_h5_reader",
+    "compact_links",
+    "writer_marked",
+    "open_h5",
+    "StorageError",
+    "storage_errors",
+    "abandon_h5",
+    "SPACE_MARGIN",
+    "ensure_space",
+    "storage_cause",
 ]
 
 
@@ -187,68 +210,3 @@ def claim(path: str | os.PathLike, *, exclusive: bool) -> int:
             "wait for it to finish or close it"
         )
     return fd
-
-
-# -- HDF5 --------------------------------------------------------------------------------------------
-def sync_h5(f: h5py.File) -> None:
-    """Flush an open HDF5 file and fsync it: everything written so far is on disk."""
-    f.flush()
-    os.fsync(f.id.get_vfd_handle())
-
-
-#: Metadata read attempts of an SWMR reader. A reader may catch metadata the writer is
-#: rewriting, fail its checksum and must retry; HDF5 retries 100 times backing off to 36 s a
-#: try, so a *damaged* file would hang a reader for ~40 minutes. 27 attempts (doubling from
-#: 1 ns) still retry a torn read for ~0.13 s, far longer than a writer's flush.
-SWMR_READ_ATTEMPTS = 27
-
-
-@functools.cache
-def _read_attempts_setter():
-    """``H5Pset_metadata_read_attempts`` of the libhdf5 that h5py uses (h5py does not wrap
-    it), or None if that library cannot be identified (then HDF5's default applies)."""
-    try:
-        with open("/proc/self/maps") as fh:
-            fields = [line.split(None, 5) for line in fh]
-        paths = {f[5].strip() for f in fields if len(f) == 6}
-    except OSError:  # not Linux
-        return None
-    libs = [p for p in paths if re.match(r"libhdf5[-.]", os.path.basename(p))]
-    if len(libs) > 1:  # several HDF5 copies loaded: only trust the one shipped with h5py
-        libs = [p for p in libs if "h5py" in p]
-    if len(libs) != 1:
-        return None
-    try:
-        setter = ctypes.CDLL(libs[0]).H5Pset_metadata_read_attempts
-    except (OSError, AttributeError):
-        return None
-    setter.argtypes = [ctypes.c_int64, ctypes.c_uint]
-    setter.restype = ctypes.c_int
-    return setter
-
-
-def open_h5_reader(path: str | os.PathLike, *, locking: bool | None = None, swmr: bool = False) -> h5py.File:
-    """Open an HDF5 file read-only for a reader that may share it with a live writer.
-
-    ``swmr=True`` opens in SWMR-read mode with :data:`SWMR_READ_ATTEMPTS` metadata retries.
-    No raw-chunk cache, so that a live reader never serves a stale chunk. ``locking`` is HDF5's
-    own file locking (None: HDF5's default).
-
-    Raises
-    ------
-    OSError
-        HDF5's error, e.g. "already open for write" for a file a writer (or a killed one) left
-        marked open, which a caller retries with ``swmr=True``.
-    """
-    fapl = h5p.create(h5p.FILE_ACCESS)
-    fapl.set_libver_bounds(h5f.LIBVER_LATEST, h5f.LIBVER_LATEST)
-    mdc, nslots, _, w0 = fapl.get_cache()
-    fapl.set_cache(mdc, nslots, 0, w0)
-    if locking is not None:
-        fapl.set_file_locking(locking, True)
-    setter = _read_attempts_setter() if swmr else None
-    if setter is not None:
-        setter(fapl.id, SWMR_READ_ATTEMPTS)
-    flags = h5f.ACC_RDONLY | (h5f.ACC_SWMR_READ if swmr else 0)
-    fid = h5f.open(os.fsencode(path), flags, fapl=fapl)
-    return h5py.File(fid)

@@ -43,6 +43,7 @@ __all__ = [
     "SweepSpec",
     "setting_of",
     "check_setting",
+    "attr_value",
 ]
 
 #: Initial-condition samplers: the strip B of Eq. (B) (the paper's ensemble), the torus, a grid.
@@ -243,14 +244,16 @@ class _Spec:
         for key, raw in attrs.items():
             name = LEGACY_NAMES.get(key, key)
             if name in names:
-                values[name] = _plain(raw)
+                values[name] = attr_value(raw)
         if isinstance(values.get("threshold"), float) and math.isnan(values["threshold"]):
             values["threshold"] = None
         return cls.from_dict(values)
 
 
-def _plain(value: Any) -> Any:
-    """A Python value from an HDF5 attribute: bytes -> str, NumPy scalars and 0-d arrays -> scalars."""
+def attr_value(value: Any) -> Any:
+    """A Python value from an HDF5 attribute: bytes -> str, NumPy scalars and 0-d arrays -> scalars.
+
+    The one decoder of stored attributes (run settings, archive and sweep metadata)."""
     if isinstance(value, bytes):
         return value.decode()
     if hasattr(value, "shape") and getattr(value, "shape", None) == ():

@@ -8,9 +8,14 @@ name by name in ``docs/archive.md`` (format ``warpratchet-archive``, version
 
 One idea per module:
 
-* :mod:`.layout`: what an archive contains (format, names, attributes; the errors);
+* :mod:`.names`: what an archive contains (format and versions, names, units; the errors);
+* :mod:`.layout`: building it (settings attributes, every dataset up front);
+* :mod:`.rows`: appending rows behind a live counter;
 * :mod:`.writer`: :class:`ArchiveSink`, the observer that writes it;
 * :mod:`.reader`: :func:`open_archive`, :class:`Archive`, :class:`Snapshots`;
+* :mod:`.progress`: percentage done and ETA of ``inspect``;
+* :mod:`.export`: ``Archive.to_pandas()`` and ``Archive.to_xarray()``;
+* :mod:`.verify`: :func:`verify_archive`, every checksum and value of a file (``warpratchet verify``);
 * :mod:`.resume`: what a resume keeps (used by :meth:`ArchiveSink.resume`);
 * :mod:`.chunking`: :func:`schedule` (chunk length, checkpoint interval) and :func:`run_to`.
 
@@ -20,13 +25,27 @@ in :mod:`warpratchet._files`.
 
 from .._files import SWMR_READ_ATTEMPTS
 from .chunking import CHECKPOINT_CHUNKS, MIN_ARCHIVE_CHUNK_STEPS, run_to, schedule
-from .layout import FORMAT, FORMAT_VERSION, SERIES_FIELDS, SNAPSHOT_FIELDS, ArchiveError, ArchiveWarning
+from .names import (
+    FORMAT,
+    FORMAT_VERSION,
+    KNOWN_FEATURES,
+    READABLE_VERSIONS,
+    SERIES_FIELDS,
+    SNAPSHOT_FIELDS,
+    ArchiveError,
+    ArchiveWarning,
+    NonFiniteStateError,
+)
 from .reader import Archive, Snapshots, open_archive
+from .verify import verify_archive
 from .writer import ArchiveSink
 
 __all__ = [
     "FORMAT",
     "FORMAT_VERSION",
+    "READABLE_VERSIONS",
+    "KNOWN_FEATURES",
+    "NonFiniteStateError",
     "SERIES_FIELDS",
     "SNAPSHOT_FIELDS",
     "CHECKPOINT_CHUNKS",
@@ -38,6 +57,7 @@ __all__ = [
     "Snapshots",
     "ArchiveSink",
     "open_archive",
+    "verify_archive",
     "schedule",
     "run_to",
 ]

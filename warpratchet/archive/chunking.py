@@ -9,20 +9,100 @@ run to a *total* step count with chunk ends on the same global steps as an unint
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Iterable
 
-from ..ensemble import Ensemble, Observer, default_chunk_steps
+from ..ensemble import STATE_FIELDS, Ensemble, Observer, default_chunk_steps
 from ..errors import ParameterError, check_count, check_optional
+from ..observables import summarize
 
-__all__ = ["CHECKPOINT_CHUNKS", "MIN_ARCHIVE_CHUNK_STEPS", "schedule", "run_to"]
+__all__ = [
+    "CHECKPOINT_CHUNKS",
+    "MIN_ARCHIVE_CHUNK_STEPS",
+    "ROW_SHARE",
+    "schedule",
+    "sink_min_chunk_steps",
+    "run_to",
+]
 
 #: Checkpoint every this many chunks by default: a checkpoint writes 56 bytes per point (the cost
 #: of ~50 point-steps of the kernel) plus two fsyncs, so 8 chunks keep it well under 1% of the
 #: kernel time while never losing more than ~8 chunks (a few seconds at the default chunk).
 CHECKPOINT_CHUNKS = 8
-#: Smallest default chunk while archiving: one series row costs ~25 point-steps per point
-#: (the summary of Eq. An and the FTLE), so chunks of >= 1024 steps keep it below ~3%.
+#: Smallest default chunk while archiving when nothing is measured: one series row costs ~25
+#: point-steps per point (the summary of Eq. An and the FTLE) with the kernel of release 0.1,
+#: so chunks of >= 1024 steps keep it below ~3%. :func:`sink_min_chunk_steps` measures instead.
 MIN_ARCHIVE_CHUNK_STEPS = 1024
+#: Largest share of the kernel time a series row may cost at the default chunk length: 0.5%,
+#: so that the kernel may get several times faster before the archive costs more than the 5%
+#: of issue 3's budget.
+ROW_SHARE = 0.005
+#: Seconds of HDF5 work per series row besides the summary (eleven row writes, two flushes).
+ROW_IO_SECONDS = 1e-3
+#: Points and steps of the probe that measures the kernel against the summary.
+_PROBE_POINTS, _PROBE_STEPS = 1 << 12, 64
+
+
+def _nice_at_least(value: float) -> int:
+    """The smallest of 1, 2, 5, 10, 20, 50, ... that is >= ``value`` (row steps people can read)."""
+    decade = 10 ** max(0, math.floor(math.log10(max(value, 1.0))))
+    for mantissa in (1, 2, 5, 10):
+        if mantissa * decade >= value:
+            return int(mantissa * decade)
+    raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _best_seconds(work, repeat: int = 3) -> float:
+    best = math.inf
+    for _ in range(repeat):
+        start = time.perf_counter()
+        work()
+        best = min(best, time.perf_counter() - start)
+    return best
+
+
+def sink_min_chunk_steps(ensemble: Ensemble) -> int:
+    """The shortest chunk whose series row costs at most :data:`ROW_SHARE` of its kernel time, measured.
+
+    A row costs a summary of every point (Eqs. An and the FTLE, NumPy on one core) plus
+    :data:`ROW_IO_SECONDS` of HDF5 work; a chunk costs ``points * chunk_steps`` kernel
+    point-steps on ``ensemble.threads`` threads. Both speeds are measured once per process,
+    kind of ensemble, device and thread count (:func:`_seconds_per_point`, ~5 ms on a copy of up
+    to 4096 of the ensemble's points), so the chunk follows the kernel: a 3x faster kernel gets
+    3x longer default chunks instead of a 3x larger archive overhead. Rounded up to 1, 2 or 5
+    times a power of ten. The ensemble is not advanced.
+    """
+    summary, kernel = _seconds_per_point(ensemble)
+    threads = max(1, min(ensemble.threads, ensemble.points))
+    row = summary * ensemble.points + ROW_IO_SECONDS
+    chunk_seconds_per_step = kernel * ensemble.points / threads
+    return _nice_at_least(row / (ROW_SHARE * chunk_seconds_per_step))
+
+
+_MEASURED: dict[tuple, tuple[float, float]] = {}
+
+
+def _seconds_per_point(ensemble: Ensemble) -> tuple[float, float]:
+    """``(summary seconds per point, kernel seconds per point-step on one thread)``, cached."""
+    key = (type(ensemble), ensemble.device, ensemble.params)
+    if key not in _MEASURED:
+        n = min(ensemble.points, _PROBE_POINTS)
+        state = {name: ensemble.array(name)[:n].copy() for name in STATE_FIELDS}
+        probe = Ensemble.from_state(ensemble.params, state, ensemble.step, device=ensemble.device, threads=1)
+        probe.run(_PROBE_STEPS, chunk_steps=_PROBE_STEPS)  # loads the kernel before timing it
+        run = _best_seconds(lambda: probe.run(_PROBE_STEPS, chunk_steps=_PROBE_STEPS))
+        sample = probe.state()
+        step = max(probe.step, 1)
+        summary = _best_seconds(lambda: _quiet_summary(sample, step)) / n
+        _MEASURED[key] = (summary, run / (n * _PROBE_STEPS))
+    return _MEASURED[key]
+
+
+def _quiet_summary(state, step) -> None:
+    try:
+        summarize(state, step)
+    except FloatingPointError:  # the probe only times it
+        pass
 
 
 def _largest_divisor_at_most(n: int, cap: int) -> int:
@@ -42,6 +122,8 @@ def schedule(
     chunk_steps: int | None = None,
     snapshot_every: int = 0,
     checkpoint_every: int | None = None,
+    *,
+    min_chunk_steps: int = MIN_ARCHIVE_CHUNK_STEPS,
 ) -> tuple[int, int]:
     """Chunk length and checkpoint interval whose chunk ends land on every snapshot and checkpoint.
 
@@ -52,11 +134,14 @@ def schedule(
     chunk_steps : int, optional
         Steps per chunk; must divide ``snapshot_every`` and ``checkpoint_every`` when given.
         Default: the largest divisor of their gcd not above ``max(default_chunk_steps(points),
-        MIN_ARCHIVE_CHUNK_STEPS)``.
+        min_chunk_steps)``.
     snapshot_every : int
         Steps between snapshots (0: none).
     checkpoint_every : int, optional
         Steps between checkpoints; default ``CHECKPOINT_CHUNKS * chunk_steps``.
+    min_chunk_steps : int
+        The default chunk is at least this long (where the intervals allow it):
+        :func:`sink_min_chunk_steps` measured, or :data:`MIN_ARCHIVE_CHUNK_STEPS`.
 
     Returns
     -------
@@ -85,7 +170,7 @@ def schedule(
                 f"chunk_steps = {chunk_steps} must divide {listed} (chunk ends must land on them)"
             )
     else:
-        cap = max(default_chunk_steps(points), MIN_ARCHIVE_CHUNK_STEPS)
+        cap = max(default_chunk_steps(points), check_count("min_chunk_steps", min_chunk_steps, 1))
         if intervals:
             g = math.gcd(*intervals.values())
             chunk_steps = _largest_divisor_at_most(g, cap)

@@ -1,19 +1,20 @@
-"""What an archive contains: format name and version, every group, dataset and attribute.
+"""Building an archive: the ``/settings`` attributes, ``/versions``, and the whole layout up front.
 
-The one place that names the layout of ``docs/archive.md`` (format ``warpratchet-archive``,
-version :data:`FORMAT_VERSION`): :func:`create` builds it in a new file, :func:`settings_attrs`
-and :func:`read_settings` translate the run's settings to and from the ``/settings``
-attributes, :func:`software_versions` fills ``/versions``. The writer and the reader use these
-names only through this module.
+:func:`settings_attrs` and :func:`read_settings` translate a run's settings to and from the
+``/settings`` attributes (RunSpec's names, :meth:`warpratchet.spec.RunSpec.to_attrs`, plus the
+archive's own schedule and the kernel's constants); :func:`create` builds every group and
+dataset of ``docs/archive.md`` (names in :mod:`.names`) in a new file. The writer and the
+reader use the layout only through these two modules.
 
-Every dataset is chunked and carries the Fletcher-32 filter; mutable scalars (``n_valid``,
-``current``, a slot's ``step``) are ``(1,)`` datasets, because SWMR allows no new objects or
-attribute changes once a writer has started. Strings are fixed-length attributes, stored inside
-the (checksummed) object headers.
+Every dataset is chunked and carries the Fletcher-32 filter and ``units``/``long_name``
+attributes; mutable scalars (the ``/progress`` counters, ``current``, a slot's ``step``) are
+``(1,)`` datasets, because SWMR allows no new objects or attribute changes once a writer has
+started. Strings are fixed-length attributes, stored inside the (checksummed) object headers.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import platform
 from importlib.metadata import PackageNotFoundError
@@ -22,101 +23,113 @@ from typing import Any
 
 import h5py
 import numpy as np
-from h5py import h5g, h5p
+from h5py import h5a, h5g, h5p, h5s, h5t
 
+from .._files import compact_links
 from ..ensemble import RENORM_CHECK_EVERY, RENORM_THRESHOLD, STATE_FIELDS
-from ..errors import FileFormatError
 from ..params import MapParams
+from ..spec import LEGACY_NAMES, attr_value, check_setting
+from .names import (
+    COUNTERS,
+    FORMAT,
+    FORMAT_VERSION,
+    INT_SERIES,
+    SERIES_FIELDS,
+    SLOTS,
+    SNAPSHOT_FIELDS,
+    describe,
+)
 
 __all__ = [
-    "FORMAT",
-    "FORMAT_VERSION",
-    "SERIES_FIELDS",
-    "SNAPSHOT_FIELDS",
-    "SLOTS",
-    "ArchiveError",
-    "ArchiveWarning",
+    "RUN_SETTINGS",
+    "ARCHIVE_SETTINGS",
     "settings_attrs",
+    "run_settings",
     "read_settings",
     "kernel_constants",
     "software_versions",
-    "attr",
     "create",
 ]
 
-#: Format name, root attribute ``format``.
-FORMAT = "warpratchet-archive"
-#: Layout version, root attribute ``format_version``; readers refuse any other.
-FORMAT_VERSION = 1
-
-#: Columns of ``/series`` (one row per chunk); ``step`` and ``chaotic_points`` are int64.
-SERIES_FIELDS = (
-    "step",
-    "A",
-    "A_stderr",
-    "lyapunov",
-    "lyapunov_std",
-    "lyapunov_min",
-    "chaotic_fraction",
-    "chaotic_points",
-    "threshold",
-    "wall_time",
-    "unix_time",
-)
-INT_SERIES = ("step", "chaotic_points")
-#: Per-point arrays of ``/snapshots``, each ``(S, M)``.
-SNAPSHOT_FIELDS = ("x", "p", "ftle", "A")
-#: The two checkpoint slots, ``/checkpoint/a`` and ``/checkpoint/b`` (``current`` = 0 or 1).
-SLOTS = ("a", "b")
+#: The RunSpec settings an archive stores (``steps`` is progress, ``/progress/target_step``:
+#: a resume moves it).
+RUN_SETTINGS = ("K", "b1", "b2", "init", "points", "seed", "classifier", "threshold", "threads", "device")
+#: The archive's own settings besides ``chunk_steps`` (a RunSpec setting) and the kernel's.
+ARCHIVE_SETTINGS = ("chunk_steps", "checkpoint_every", "snapshot_every", "snapshot_points")
 
 #: Initial-state fill values: a field equal to its fill everywhere is not written (costs no space).
 FILL = {"x": 0.0, "q": 0.0, "winding": 0, "p0": 0.0, "dx": 1.0, "dp": 0.0, "log_stretch": 0.0}
-#: Rows allocated at a time in ``/series`` and ``/snapshots``.
+#: Rows allocated at a time in ``/series`` and ``/snapshots`` (trimmed to the valid rows at close).
 ROW_CHUNK = 256
 STATE_CHUNK = 1 << 17  # 1 MiB of float64 per chunk
 
 
-class ArchiveError(FileFormatError):
-    """An archive that cannot be used: missing, truncated, corrupted, incompatible or in use."""
-
-
-class ArchiveWarning(UserWarning):
-    """Something was recovered, e.g. an older checkpoint because the newest one is damaged."""
-
-
 # -- /settings and /versions ------------------------------------------------------------------------
-def settings_attrs(
+def settings_attrs(values: dict[str, Any]) -> dict[str, Any]:
+    """The ``/settings`` attributes of ``values`` (keys :data:`RUN_SETTINGS` + :data:`ARCHIVE_SETTINGS`).
+
+    RunSpec's settings are checked by RunSpec's own validators and stored as
+    :meth:`RunSpec.to_attrs` stores them: a ``None`` (a run-dependent default, or no seed) is an
+    absent attribute. An ensemble built from arrays has ``init = "user"``, which no sampler
+    reproduces. The kernel's renormalisation constants are stored too, so that a resume can
+    refuse a kernel that would not continue the run bit for bit.
+    """
+    out: dict[str, Any] = {}
+    for name in RUN_SETTINGS + ARCHIVE_SETTINGS:
+        value = values.get(name)
+        if value is None:
+            continue
+        if name in RUN_SETTINGS + ("chunk_steps",) and not (name == "init" and value == "user"):
+            value = check_setting(name, value)
+        out[name] = value
+    return {**out, **kernel_constants(), "dtype": "float64"}
+
+
+def run_settings(
+    ensemble: Any,
     *,
-    points: int,
-    sampler: str,
-    seed: int | None,
-    threads: int,
-    device: str,
+    threshold: float | None,
     chunk_steps: int,
     checkpoint_every: int,
     snapshot_every: int,
     snapshot_points: int,
-    threshold: float | None,
 ) -> dict[str, Any]:
-    """The ``/settings`` attributes of a new archive (no seed: -1; default threshold: NaN).
-
-    The kernel's renormalisation constants are stored too, so that :mod:`.resume` can refuse a
-    kernel that would not continue the run bit for bit.
-    """
+    """The settings of a new archive of ``ensemble`` under RunSpec's names (:func:`read_settings`' form)."""
+    p = ensemble.params
     return {
-        "points": points,
-        "sampler": sampler,
-        "seed": -1 if seed is None else int(seed),
-        "threads": threads,
-        "device": device,
+        "K": p.K,
+        "b1": p.b1,
+        "b2": p.b2,
+        "init": ensemble.sampler,
+        "points": ensemble.points,
+        "seed": ensemble.seed,
+        "classifier": "ftle",
+        "threshold": threshold,
+        "threads": ensemble.threads,
+        "device": ensemble.device,
         "chunk_steps": chunk_steps,
         "checkpoint_every": checkpoint_every,
         "snapshot_every": snapshot_every,
         "snapshot_points": snapshot_points,
-        "threshold": math.nan if threshold is None else float(threshold),
-        **kernel_constants(),
-        "dtype": "float64",
     }
+
+
+def read_settings(attrs: h5py.AttributeManager, version: int) -> dict[str, Any]:
+    """``/settings`` as Python values under RunSpec's names, every setting present (``None``: absent).
+
+    Version 1 wrote ``sampler`` for ``init``, -1 for no seed and NaN for the default threshold;
+    all three read as version 2 stores them.
+    """
+    settings = {LEGACY_NAMES.get(k, k): attr_value(v) for k, v in attrs.items()}
+    if version == 1:
+        if settings.get("seed", -1) < 0:
+            settings["seed"] = None
+        if isinstance(settings.get("threshold"), float) and math.isnan(settings["threshold"]):
+            settings["threshold"] = None
+        settings.setdefault("classifier", "ftle")
+    for name in RUN_SETTINGS + ARCHIVE_SETTINGS:
+        settings.setdefault(name, None)
+    return settings
 
 
 def kernel_constants() -> dict[str, Any]:
@@ -124,16 +137,7 @@ def kernel_constants() -> dict[str, Any]:
     return {"renorm_threshold": RENORM_THRESHOLD, "renorm_check_every": RENORM_CHECK_EVERY}
 
 
-def read_settings(attrs: h5py.AttributeManager) -> dict[str, Any]:
-    """``/settings`` as Python values, with the stored markers decoded (seed -1 and threshold NaN
-    become None); the inverse of :func:`settings_attrs`."""
-    settings = {k: attr(v) for k, v in attrs.items()}
-    settings["seed"] = None if settings.get("seed", -1) < 0 else settings["seed"]
-    if isinstance(settings.get("threshold"), float) and math.isnan(settings["threshold"]):
-        settings["threshold"] = None
-    return settings
-
-
+@functools.cache
 def software_versions() -> dict[str, str]:
     """The ``/versions`` attributes: the software of the process creating the archive."""
 
@@ -155,17 +159,6 @@ def software_versions() -> dict[str, str]:
     }
 
 
-def attr(value: Any) -> Any:
-    """A Python/NumPy value as read from an HDF5 attribute (bytes -> str, 0-d -> scalar)."""
-    if isinstance(value, bytes):
-        return value.decode()
-    if isinstance(value, np.ndarray) and value.shape == ():
-        value = value[()]
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
-
-
 # -- the whole layout, created up front -----------------------------------------------------------
 def create(
     f: h5py.File,
@@ -177,30 +170,43 @@ def create(
     initial: dict[str, np.ndarray],
     initial_step: int,
     indices: np.ndarray,
+    target_step: int = -1,
 ) -> None:
     """Create the whole layout of ``docs/archive.md`` in ``f`` (SWMR allows no new objects later).
 
-    ``settings`` are the ``/settings`` attributes (:func:`settings_attrs`), ``initial`` the state
-    at ``initial_step`` (keys ``STATE_FIELDS``), ``indices`` the snapshot subsample ``(M,)``.
-    Series and snapshots start empty, both checkpoint slots unused.
+    ``settings`` are the settings under RunSpec's names (:func:`read_settings`' form; stored
+    with :func:`settings_attrs`), ``initial`` the state at ``initial_step`` (keys
+    ``STATE_FIELDS``), ``indices`` the snapshot subsample ``(M,)``. Series and snapshots start
+    empty, both checkpoint slots unused.
     """
     n = int(settings["points"])
     m = int(indices.size)
     _set_attrs(f, {"format": FORMAT, "format_version": FORMAT_VERSION, "created": created})
+    f.attrs["features"] = np.bytes_(b",".join(()))  # none yet (names.KNOWN_FEATURES)
     _set_attrs(_group(f, "params"), params.as_dict())
-    _set_attrs(_group(f, "settings"), settings)
+    _set_attrs(_group(f, "settings"), settings_attrs(settings))
     _set_attrs(_group(f, "versions"), versions)
+
+    def dataset(group: h5py.Group, name: str, **kw: Any) -> h5py.Dataset:
+        ds = group.create_dataset(name, fletcher32=True, **kw)
+        units, long_name = describe(group.name.lstrip("/"), name)
+        _set_attrs(ds, {"units": units, "long_name": long_name})
+        return ds
 
     def state_dataset(group: h5py.Group, name: str, fill: float | int | None = None) -> h5py.Dataset:
         dtype = np.int64 if name == "winding" else np.float64
         kw = {} if fill is None else {"fillvalue": dtype(fill)}
-        return group.create_dataset(
-            name, shape=(n,), dtype=dtype, chunks=(min(n, STATE_CHUNK),), fletcher32=True, **kw
-        )
+        return dataset(group, name, shape=(n,), dtype=dtype, chunks=(min(n, STATE_CHUNK),), **kw)
 
     def counter(group: h5py.Group, name: str, value: int) -> None:
         # Mutable scalars are (1,) chunked datasets: checksummed, and writable under SWMR.
-        group.create_dataset(name, data=np.array([value], np.int64), chunks=(1,), fletcher32=True)
+        dataset(group, name, data=np.array([value], np.int64), chunks=(1,))
+
+    def rows(group: h5py.Group, name: str, dtype: Any, width: int | None = None) -> h5py.Dataset:
+        if width is None:
+            return dataset(group, name, shape=(0,), maxshape=(None,), chunks=(ROW_CHUNK,), dtype=dtype)
+        chunks = (1, max(1, min(width, STATE_CHUNK)))
+        return dataset(group, name, shape=(0, width), maxshape=(None, None), chunks=chunks, dtype=dtype)
 
     g = _group(f, "initial")
     _set_attrs(g, {"step": int(initial_step)})
@@ -211,38 +217,26 @@ def create(
             ds.write_direct(np.ascontiguousarray(values, dtype=ds.dtype))
 
     g = _group(f, "series")
-    for name in SERIES_FIELDS:
-        g.create_dataset(
-            name,
-            shape=(0,),
-            maxshape=(None,),
-            chunks=(ROW_CHUNK,),
-            dtype=np.int64 if name in INT_SERIES else np.float64,
-            fletcher32=True,
-        )
-    counter(g, "n_valid", 0)
+    scale = rows(g, "step", np.int64)
+    scale.make_scale("step")
+    for name in SERIES_FIELDS[1:]:
+        rows(g, name, np.int64 if name in INT_SERIES else np.float64).dims[0].attach_scale(scale)
 
     g = _group(f, "snapshots")
-    g.create_dataset(
-        "indices",
-        data=indices.astype(np.int64),
-        maxshape=(None,),
-        chunks=(max(1, min(m, STATE_CHUNK)),),
-        fletcher32=True,
-    )
-    g.create_dataset(
-        "step", shape=(0,), maxshape=(None,), chunks=(ROW_CHUNK,), dtype=np.int64, fletcher32=True
-    )
+    width = max(1, min(m, STATE_CHUNK))
+    points = dataset(g, "indices", data=indices.astype(np.int64), maxshape=(None,), chunks=(width,))
+    # A dimension scale, so that netCDF readers name the axis instead of inventing a phony one.
+    points.make_scale("point")
+    scale = rows(g, "step", np.int64)
+    scale.make_scale("step")
     for name in SNAPSHOT_FIELDS:
-        g.create_dataset(
-            name,
-            shape=(0, m),
-            maxshape=(None, None),
-            chunks=(1, max(1, min(m, STATE_CHUNK))),
-            dtype=np.float64,
-            fletcher32=True,
-        )
-    counter(g, "n_valid", 0)
+        ds = rows(g, name, np.float64, m)
+        ds.dims[0].attach_scale(scale)
+        ds.dims[1].attach_scale(points)
+
+    g = _group(f, "progress")
+    for key, path in COUNTERS[FORMAT_VERSION].items():
+        counter(g, path.split("/")[1], target_step if key == "target" else 0)
 
     g = _group(f, "checkpoint")
     counter(g, "current", -1)
@@ -254,8 +248,13 @@ def create(
 
 
 def _group(parent: h5py.Group, name: str) -> h5py.Group:
-    """A group whose attributes all live in its (checksummed) object header, not in dense storage."""
+    """A group whose links and attributes all live in its (checksummed) object header.
+
+    Past 8 links or attributes HDF5 moves them to "dense" storage, a fractal heap whose blocks
+    carry no checksum: a flipped bit there changed a link and crashed HDF5 while listing the group.
+    """
     gcpl = h5p.create(h5p.GROUP_CREATE)
+    compact_links(gcpl)
     gcpl.set_attr_phase_change(64, 32)
     h5g.create(parent.id, name.encode(), gcpl=gcpl)
     return parent[name]
@@ -263,6 +262,20 @@ def _group(parent: h5py.Group, name: str) -> h5py.Group:
 
 def _set_attrs(obj: h5py.HLObject, values: dict[str, Any]) -> None:
     """Attributes, strings as fixed-length UTF-8 (stored in the checksummed header, unlike the
-    variable-length strings h5py writes by default, which live in an unchecked global heap)."""
+    variable-length strings h5py writes by default, which live in an unchecked global heap).
+
+    Written with HDF5's low-level calls: a layout has ~120 attributes, and h5py's ``attrs[key] =``
+    (~70 us each) was a third of the time it takes to create an archive.
+    """
+    scalar = h5s.create(h5s.SCALAR)
     for key, value in values.items():
-        obj.attrs[key] = np.bytes_(value.encode()) if isinstance(value, str) else value
+        data = np.asarray(np.bytes_(value.encode()) if isinstance(value, str) else value)
+        if data.dtype.kind == "S" and data.itemsize == 0:
+            data = np.asarray(np.bytes_(b""), dtype="S1")  # HDF5 has no zero-length string type
+        if data.shape != () or data.dtype.kind not in "biufS":
+            obj.attrs[key] = value  # anything else the usual way
+            continue
+        if h5a.exists(obj.id, key.encode()):
+            h5a.delete(obj.id, key.encode())
+        attr = h5a.create(obj.id, key.encode(), h5t.py_create(data.dtype), scalar)
+        attr.write(np.ascontiguousarray(data))

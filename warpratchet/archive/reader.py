@@ -1,67 +1,46 @@
 """Reading an archive: :func:`open_archive`, :class:`Archive`, :class:`Snapshots`.
 
-A reader is safe while a run is still writing the file (HDF5 SWMR): metadata are read on
-opening, while ``series``, ``snapshots`` and the checkpoint slots are read afresh on every
-access and only up to the ``n_valid`` counters, which the writer bumps after the rows are on
-disk. A slot's ``step`` is read before and after its data (a sequence lock), so a checkpoint
-the writer recycles meanwhile is never returned. Any HDF5 failure becomes one
-:class:`~warpratchet.archive.layout.ArchiveError` line; a damaged checkpoint is skipped with an
-:class:`~warpratchet.archive.layout.ArchiveWarning` naming what was recovered instead.
+A reader is safe while a run is still writing the file (HDF5 SWMR; :func:`warpratchet._files.open_h5`
+opens a file a writer has open in SWMR-read mode): metadata are read on opening, while
+``series``, ``snapshots`` and the checkpoint slots are read afresh on every access and only up
+to the live counters, which the writer raises after the rows are on disk. A slot's ``step`` is
+read before and after its data (a sequence lock), so a checkpoint the writer recycles meanwhile
+is never returned. Any HDF5 failure becomes one :class:`~warpratchet.archive.names.ArchiveError`
+line; a damaged or non-finite checkpoint is skipped with an
+:class:`~warpratchet.archive.names.ArchiveWarning` naming what was recovered instead. Format
+versions 1 and 2 are read (:mod:`.names`).
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
-import time
 import warnings
-from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
-import h5py
 import numpy as np
 
-from .._files import open_h5_reader
+from .._files import open_h5
+from .._h5verify import first_line
 from ..ensemble import STATE_FIELDS, Ensemble
 from ..params import MapParams
-from .layout import (
+from ..spec import SAMPLERS, RunSpec, attr_value
+from . import progress
+from .checks import check_extent, listed, nonfinite, reading
+from .checks import refresh as _refresh
+from .layout import read_settings
+from .names import (
+    COUNTERS,
     FORMAT,
-    FORMAT_VERSION,
+    READABLE_VERSIONS,
     SERIES_FIELDS,
     SLOTS,
     SNAPSHOT_FIELDS,
     ArchiveError,
     ArchiveWarning,
-    attr,
-    read_settings,
 )
 
 __all__ = ["Snapshots", "Archive", "open_archive"]
-
-
-def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip() or type(exc).__name__
-    return text.splitlines()[0]
-
-
-@contextlib.contextmanager
-def _reading(path: str, what: str) -> Iterator[None]:
-    """Turn any HDF5/h5py failure while reading ``what`` into one clear :class:`ArchiveError`."""
-    try:
-        yield
-    except ArchiveError:
-        raise
-    except (OSError, KeyError, RuntimeError, ValueError, TypeError, IndexError) as exc:
-        raise ArchiveError(
-            f"{path}: cannot read {what} ({_first_line(exc)}); the archive is truncated or corrupted"
-        ) from None
-
-
-def _refresh(ds: h5py.Dataset) -> h5py.Dataset:
-    with contextlib.suppress(Exception):  # only meaningful (and only allowed) in SWMR mode
-        ds.refresh()
-    return ds
 
 
 @dataclass(frozen=True)
@@ -97,93 +76,100 @@ class Archive:
     """A read-only view of an archive; see :func:`open_archive`.
 
     Metadata (``params``, ``settings``, ``versions``, ``created``) are read on opening; ``series``,
-    ``snapshots`` and ``checkpoint_step`` are read afresh on every access, so a reader follows a
-    run that is still being written.
+    ``snapshots``, ``checkpoint_step`` and ``target_step`` are read afresh on every access, so a
+    reader follows a run that is still being written.
     """
 
     def __init__(self, path: str | os.PathLike, *, locking: bool | None = None) -> None:
         self.path = os.fspath(path)
         if not os.path.exists(self.path):
             raise ArchiveError(f"{self.path}: no such archive")
-        self._file = self._open(locking)
+        try:
+            self._file = open_h5(self.path, locking=locking)
+        except OSError as exc:
+            if "unable to lock file" in str(exc):
+                raise ArchiveError(f"{self.path} is locked by another process") from None
+            raise ArchiveError(
+                f"{self.path}: not a readable HDF5 archive ({first_line(exc)}); "
+                "the file is truncated or corrupted"
+            ) from None
         try:
             self._read_metadata()
         except BaseException:
             self._file.close()
             raise
 
-    def _open(self, locking: bool | None) -> h5py.File:
-        """Open read-only. A file closed cleanly opens normally, so HDF5 checks its size against
-        the superblock (a truncated file is an error at once, and damaged metadata is not
-        retried); a file that a writer has open, or that a killed writer left marked as open,
-        opens in SWMR mode."""
-        for attempt in range(20):
-            try:
-                try:
-                    return open_h5_reader(self.path, locking=locking, swmr=False)
-                except OSError as exc:
-                    if "already open for write" not in str(exc):
-                        raise
-                return open_h5_reader(self.path, locking=locking, swmr=True)
-            except OSError as exc:
-                text = str(exc)
-                if "SWMR read access flag not the same" in text:
-                    # This process is writing it: HDF5 shares the writer's handle instead.
-                    kw = {} if locking is None else {"locking": locking}
-                    with _reading(self.path, "the file"):
-                        return h5py.File(self.path, "r", **kw)
-                if "unable to lock file" in text:
-                    if attempt < 19:  # another program's writer, about to enter SWMR mode
-                        time.sleep(0.05)
-                        continue
-                    raise ArchiveError(f"{self.path} is locked by another process") from None
-                raise ArchiveError(
-                    f"{self.path}: not a readable HDF5 archive ({_first_line(exc)}); "
-                    "the file is truncated or corrupted"
-                ) from None
-        raise AssertionError("unreachable")  # pragma: no cover
-
     def _read_metadata(self) -> None:
         f = self._file
-        with _reading(self.path, "the root attributes"):
-            fmt = attr(f.attrs.get("format", b""))
-            version = attr(f.attrs.get("format_version", -1))
+        with reading(self.path, "the root attributes"):
+            fmt = attr_value(f.attrs.get("format", b""))
+            version = attr_value(f.attrs.get("format_version", -1))
         if fmt != FORMAT:
             raise ArchiveError(
                 f"{self.path}: not a warpratchet archive (format = {fmt!r}, expected {FORMAT!r})"
             )
-        if version != FORMAT_VERSION:
+        if version not in READABLE_VERSIONS:
             raise ArchiveError(
                 f"{self.path}: archive format version {version} is not supported "
-                f"(this warpratchet reads version {FORMAT_VERSION})"
+                f"(this warpratchet reads versions {', '.join(map(str, READABLE_VERSIONS))})"
             )
         self.format_version = int(version)
-        with _reading(self.path, "the metadata"):
-            self.created = str(attr(f.attrs["created"]))
-            p = {k: attr(v) for k, v in f["params"].attrs.items()}
+        self._counters = COUNTERS[self.format_version]
+        with reading(self.path, "the metadata"):
+            self.created = str(attr_value(f.attrs["created"]))
+            features = str(attr_value(f.attrs.get("features", b"")))
+            self.features = tuple(name for name in features.split(",") if name)
+            p = {k: attr_value(v) for k, v in f["params"].attrs.items()}
             self.params = MapParams(p["K"], p["b1"], p["b2"])
-            self.settings = read_settings(f["settings"].attrs)
-            self.versions = {k: str(attr(v)) for k, v in f["versions"].attrs.items()}
-            self.initial_step = int(attr(f["initial"].attrs["step"]))
+            self.settings = read_settings(f["settings"].attrs, self.format_version)
+            self.versions = {k: str(attr_value(v)) for k, v in f["versions"].attrs.items()}
+            self.initial_step = int(attr_value(f["initial"].attrs["step"]))
+        if self.format_version == 1:
+            # Version 1 callers read the sampler as "sampler" (tests/data/archive_v1.h5).
+            self.settings["sampler"] = self.settings["init"]
         self.points = int(self.settings["points"])
 
-    def _stored_settings(self) -> dict[str, Any]:
-        """``/settings`` exactly as stored (seed -1 and threshold NaN not decoded), to copy it."""
-        with _reading(self.path, "the metadata"):
-            return {k: attr(v) for k, v in self._file["settings"].attrs.items()}
-
     # -- live data ------------------------------------------------------------------------------
-    def _count(self, group: str) -> int:
-        with _reading(self.path, f"/{group}/n_valid"):
-            n = int(_refresh(self._file[group]["n_valid"])[0])
-        if n < 0:
-            raise ArchiveError(f"{self.path}: /{group}/n_valid = {n} is negative; the archive is corrupted")
+    def _counter(self, key: str) -> int:
+        path = self._counters[key]
+        with reading(self.path, f"/{path}"):
+            ds = _refresh(self._file[path])
+            check_extent(self.path, ds)
+            n = int(ds[0])
+        if n < 0 and key != "target":
+            raise ArchiveError(f"{self.path}: /{path} = {n} is negative; the archive is corrupted")
         return n
 
     @property
     def rows(self) -> int:
         """Number of valid rows of ``series`` (chunks recorded)."""
-        return self._count("series")
+        return self._counter("series")
+
+    @property
+    def snapshot_count(self) -> int:
+        """Number of valid snapshots."""
+        return self._counter("snapshots")
+
+    @property
+    def target_step(self) -> int | None:
+        """The step the last run session aims at (None for format v1 or before the first run)."""
+        if "target" not in self._counters:
+            return None
+        target = self._counter("target")
+        return target if target >= 0 else None
+
+    @property
+    def spec(self) -> RunSpec | None:
+        """The run as a :class:`~warpratchet.spec.RunSpec` (``steps``: the target step).
+
+        None for an ensemble built from arrays (no sampler reproduces it) or before a target
+        step is known.
+        """
+        target = self.target_step
+        if self.settings["init"] not in SAMPLERS or target is None or self.settings["seed"] is None:
+            return None
+        stored = {k: v for k, v in self.settings.items() if v is not None}
+        return RunSpec.from_attrs({**stored, **self.params.as_dict(), "steps": target})
 
     @property
     def series(self) -> dict[str, np.ndarray]:
@@ -193,39 +179,45 @@ class Archive:
         error, ``lyapunov*`` FTLE statistics of the chaotic points (per iteration),
         ``wall_time`` the chunk's kernel seconds, ``unix_time`` when the row was written.
         """
-        n = self._count("series")
+        n = self.rows
         out = {}
         for name in SERIES_FIELDS:
-            with _reading(self.path, f"/series/{name}"):
+            with reading(self.path, f"/series/{name}"):
                 ds = _refresh(self._file["series"][name])
                 if ds.shape[0] < n:
-                    raise ArchiveError(
-                        f"{self.path}: /series/{name} has {ds.shape[0]} rows, n_valid says {n}"
-                    )
+                    raise ArchiveError(f"{self.path}: /series/{name} has {ds.shape[0]} rows, {n} are valid")
+                check_extent(self.path, ds, n)
                 out[name] = ds[:n]
         return out
 
     @property
     def snapshots(self) -> Snapshots:
         """Snapshots recorded so far (``S`` may be 0); see :class:`Snapshots`."""
-        n = self._count("snapshots")
-        g = self._file["snapshots"]
-        with _reading(self.path, "/snapshots"):
+        n = self.snapshot_count
+        with reading(self.path, "/snapshots"):
+            g = self._file["snapshots"]
             indices = _refresh(g["indices"])[:]
             steps = _refresh(g["step"])
             if steps.shape[0] < n:
-                raise ArchiveError(
-                    f"{self.path}: /snapshots/step has {steps.shape[0]} rows, n_valid says {n}"
-                )
+                raise ArchiveError(f"{self.path}: /snapshots/step has {steps.shape[0]} rows, {n} are valid")
+            check_extent(self.path, g["indices"])
+            check_extent(self.path, steps, n)
             fields = {"steps": steps[:n], "indices": indices}
             for name in SNAPSHOT_FIELDS:
                 ds = _refresh(g[name])
-                if ds.shape[0] < n or ds.shape[1] != indices.size:
+                check_extent(self.path, ds, n)
+                if ds.shape[0] < n or (n and ds.shape[1] != indices.size):
                     raise ArchiveError(
                         f"{self.path}: /snapshots/{name} has shape {ds.shape}, expected ({n}, M)"
                     )
-                fields[name] = ds[:n]
+                fields[name] = ds[:n].reshape(n, indices.size)
         return Snapshots(**fields)
+
+    def _slot_step(self, name: str) -> int:
+        with reading(self.path, f"/checkpoint/{name}/step"):
+            ds = _refresh(self._file["checkpoint"][name]["step"])
+            check_extent(self.path, ds)
+            return int(ds[0])
 
     def _slot_steps(self, problems: list[str] | None = None) -> list[tuple[int, str]]:
         """Complete slots as ``(step, name)``, newest first (``step`` -1 marks a slot in progress).
@@ -235,8 +227,7 @@ class Archive:
         out = []
         for name in SLOTS:
             try:
-                with _reading(self.path, f"/checkpoint/{name}/step"):
-                    step = int(_refresh(self._file["checkpoint"][name]["step"])[0])
+                step = self._slot_step(name)
             except ArchiveError as exc:
                 if problems is None:
                     raise
@@ -256,45 +247,62 @@ class Archive:
         slots = self._slot_steps()
         return slots[0][0] if slots else self.initial_step
 
-    def _read_state(self, group: h5py.Group, where: str) -> dict[str, np.ndarray]:
+    def read_state(self, group: str) -> dict[str, np.ndarray]:
+        """The per-point state stored in ``group`` (``"initial"``, ``"checkpoint/a"``, ...), unchecked."""
         state = {}
         for name in STATE_FIELDS:
-            with _reading(self.path, f"{where}/{name}"):
-                ds = _refresh(group[name])
+            with reading(self.path, f"/{group}/{name}"):
+                ds = _refresh(self._file[group][name])
                 if ds.shape != (self.points,):
                     raise ArchiveError(
-                        f"{self.path}: {where}/{name} has shape {ds.shape}, expected ({self.points},)"
+                        f"{self.path}: /{group}/{name} has shape {ds.shape}, expected ({self.points},)"
                     )
+                check_extent(self.path, ds)
                 state[name] = ds[:]
         return state
 
     @property
     def initial(self) -> dict[str, np.ndarray]:
         """The state the archive started from (at step ``initial_step``), keys ``STATE_FIELDS``."""
-        return self._read_state(self._file["initial"], "/initial")
+        return self.read_state("initial")
 
     def checkpoint(self) -> tuple[dict[str, np.ndarray], int]:
-        """The newest checkpoint whose data verify, as ``(state, step)``.
+        """The newest checkpoint whose data verify and are finite, as ``(state, step)``.
 
         Tries the complete slots newest first, then the initial state. A slot whose checksum
-        fails is skipped with an :class:`ArchiveWarning` naming what was recovered instead.
+        fails, or that holds non-finite values (written by format v1 releases), is skipped with
+        an :class:`ArchiveWarning` naming what was recovered instead. A slot the live writer
+        recycles while it is read is read again, never reported as damaged.
         """
-        problems = []
-        for _attempt in range(10):  # a live writer may recycle a slot while we read it
+        problems: list[str] = []
+        for _attempt in range(10):
             problems.clear()
             retry = False
             for step, name in self._slot_steps(problems):
-                where = f"/checkpoint/{name}"
                 try:
-                    state = self._read_state(self._file["checkpoint"][name], where)
+                    state = self.read_state(f"checkpoint/{name}")
+                except ArchiveError as exc:
+                    try:
+                        again = self._slot_step(name)
+                    except ArchiveError:
+                        again = step
+                    if again != step:  # recycled meanwhile: a torn read, not damage
+                        retry = True
+                        break
+                    problems.append(f"checkpoint at step {step} is unreadable ({exc})")
+                    continue
+                try:
+                    again = self._slot_step(name)
                 except ArchiveError as exc:
                     problems.append(f"checkpoint at step {step} is unreadable ({exc})")
                     continue
-                with _reading(self.path, f"{where}/step"):
-                    again = int(_refresh(self._file["checkpoint"][name]["step"])[0])
                 if again != step:  # overwritten while we read: start over
                     retry = True
                     break
+                bad = nonfinite(state)
+                if bad:
+                    problems.append(f"checkpoint at step {step} holds non-finite values ({listed(bad)})")
+                    continue
                 self._warn(problems, f"recovered the checkpoint at step {step}")
                 return state, step
             if not retry:
@@ -308,7 +316,7 @@ class Archive:
         if problems:
             warnings.warn(f"{self.path}: {'; '.join(problems)}; {outcome}", ArchiveWarning, stacklevel=3)
 
-    def _restore(
+    def restore(
         self, state: dict[str, np.ndarray], step: int, threads: int | None = None, device: str | None = None
     ) -> Ensemble:
         """An :class:`Ensemble` of this archive's run holding ``state`` at ``step``."""
@@ -318,38 +326,53 @@ class Archive:
             step,
             device=device,
             threads=threads,
-            sampler=self.settings["sampler"],
+            sampler=self.settings["init"],
             seed=self.settings["seed"],
         )
 
     def ensemble(self, threads: int | None = None, device: str | None = None) -> Ensemble:
         """An :class:`Ensemble` restored bit for bit at the newest good checkpoint."""
         state, step = self.checkpoint()
-        return self._restore(state, step, threads, device)
+        return self.restore(state, step, threads, device)
 
     def latest(self) -> dict[str, float | int] | None:
         """The last series row as a dict (None before the first chunk)."""
-        series = self.series
-        if series["step"].size == 0:
-            return None
-        return {name: values[-1].item() for name, values in series.items()}
+        return _last_row(self.series)
 
     def info(self) -> dict[str, Any]:
-        """Everything ``warpratchet inspect`` shows: metadata, progress, latest summary."""
+        """Everything ``warpratchet inspect`` shows: metadata, progress (with an ETA), latest summary."""
+        series = self.series
+        checkpoint_step = self.checkpoint()[1]  # verified: where a resume would start
         return {
             "path": self.path,
             "format": FORMAT,
             "format_version": self.format_version,
+            "features": list(self.features),
             "created": self.created,
             "params": self.params.as_dict(),
             "settings": dict(self.settings),
             "versions": dict(self.versions),
             "initial_step": self.initial_step,
-            "checkpoint_step": self.checkpoint()[1],  # verified: where a resume would start
-            "rows": self.rows,
-            "snapshots": self._count("snapshots"),
-            "latest": self.latest(),
+            "checkpoint_step": checkpoint_step,
+            "rows": int(series["step"].size),
+            "snapshots": self.snapshot_count,
+            "latest": _last_row(series),
+            **progress.estimate(series, self.target_step, self.initial_step),
         }
+
+    # -- exports ----------------------------------------------------------------------------------
+    def to_pandas(self):
+        """``series`` as a ``pandas.DataFrame`` indexed by ``step`` (needs ``warpratchet[xarray]``)."""
+        from .export import series_frame
+
+        return series_frame(self)
+
+    def to_xarray(self, group: str = "series"):
+        """``series`` (dimension ``step``) or ``snapshots`` (``step``, ``point``) as an
+        ``xarray.Dataset`` with units and long names (needs ``warpratchet[xarray]``)."""
+        from .export import dataset
+
+        return dataset(self, group)
 
     def close(self) -> None:
         self._file.close()
@@ -365,12 +388,16 @@ class Archive:
         return f"Archive({self.path!r}, K={p.K!r}, b1={p.b1!r}, b2={p.b2!r}, points={self.points})"
 
 
+def _last_row(series: dict[str, np.ndarray]) -> dict[str, float | int] | None:
+    return None if series["step"].size == 0 else {k: v[-1].item() for k, v in series.items()}
+
+
 def open_archive(path: str | os.PathLike) -> Archive:
     """Open an archive read-only (SWMR: safe while a run is still writing it).
 
     Returns an :class:`Archive` with ``params``, ``settings``, ``versions``, ``created``,
-    ``series``, ``snapshots``, ``checkpoint_step`` and ``ensemble()``; use it as a context
-    manager. Raises :class:`ArchiveError` (a ``ValueError``) with one clear line for a missing,
-    truncated, corrupted or incompatible file.
+    ``series``, ``snapshots``, ``checkpoint_step``, ``target_step`` and ``ensemble()``; use it
+    as a context manager. Raises :class:`ArchiveError` (a ``ValueError``) with one clear line for
+    a missing, truncated, corrupted or incompatible file.
     """
     return Archive(path)

@@ -6,11 +6,18 @@ the newest good checkpoint, and that checkpoint. :func:`salvage` reads all of it
 kernel that would not continue the run bit for bit); :meth:`Salvage.write` puts it into the new
 file, whose layout :func:`~warpratchet.archive.layout.create` has made. Rows past the checkpoint
 are dropped: the resumed run writes them again, identically (only their clocks differ).
+
+Damage costs only what it hit (issue 13.2): a series row or snapshot whose checksum fails is
+left out, a damaged initial state of a sampled ensemble is sampled again (the samplers are
+deterministic), otherwise the checkpoint becomes the archive's initial state; each is named in
+one :class:`~warpratchet.archive.names.ArchiveWarning`.
 """
 
 from __future__ import annotations
 
 import os
+import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -18,7 +25,10 @@ import h5py
 import numpy as np
 
 from ..ensemble import STATE_FIELDS, Ensemble
-from .layout import SERIES_FIELDS, SNAPSHOT_FIELDS, ArchiveError, kernel_constants
+from ..spec import SAMPLERS
+from .checks import reading
+from .layout import kernel_constants
+from .names import COUNTERS, FORMAT_VERSION, SERIES_FIELDS, SNAPSHOT_FIELDS, ArchiveError, ArchiveWarning
 from .reader import Archive, Snapshots
 
 __all__ = ["Salvage", "salvage"]
@@ -58,25 +68,74 @@ class Salvage:
 
     def write(self, f: h5py.File) -> None:
         """Put the rows, snapshots and checkpoint into a freshly created layout ``f``."""
+        counters = COUNTERS[FORMAT_VERSION]
         g = f["series"]
         for name in SERIES_FIELDS:
             if self.rows:
                 g[name].resize(self.rows, axis=0)
                 g[name][:] = self.series[name]
-        g["n_valid"][0] = self.rows
+        f[counters["series"]][0] = self.rows
         g = f["snapshots"]
         snaps = self.snapshots
         for name in ("step", *SNAPSHOT_FIELDS):
             if len(snaps):
                 g[name].resize(len(snaps), axis=0)
                 g[name][...] = snaps.steps if name == "step" else getattr(snaps, name)
-        g["n_valid"][0] = len(snaps)
+        f[counters["snapshots"]][0] = len(snaps)
         if self.step != self.layout["initial_step"]:
             slot = f["checkpoint"]["a"]
             for name in STATE_FIELDS:
                 slot[name].write_direct(np.ascontiguousarray(self.state[name]))
             slot["step"][0] = self.step
             f["checkpoint"]["current"][0] = 0
+
+
+def _readable_rows(
+    arc: Archive, group: str, names: Sequence[str], n: int, problems: list[str]
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """The first ``n`` rows of ``/group/<names>`` and which rows every dataset could give.
+
+    Reads each dataset whole; one whose checksum fails is read row by row, and its damaged rows
+    are marked (one problem line per dataset).
+    """
+    ok = np.ones(n, dtype=bool)
+    out = {}
+    for name in names:
+        ds = arc._file[group][name]
+        try:
+            with reading(arc.path, f"/{group}/{name}"):
+                out[name] = ds[:n]
+            continue
+        except ArchiveError:
+            pass
+        values = np.zeros((n, *ds.shape[1:]), dtype=ds.dtype)
+        bad = []
+        for i in range(n):
+            try:
+                with reading(arc.path, f"/{group}/{name}"):
+                    values[i] = ds[i]
+            except ArchiveError:
+                bad.append(i)
+        ok[bad] = False
+        problems.append(f"{len(bad)} damaged row(s) of /{group}/{name}")
+        out[name] = values
+    return out, ok
+
+
+def _initial(arc: Archive, state: dict[str, np.ndarray], step: int, problems: list[str]) -> tuple[dict, int]:
+    """The initial state to keep, and its step (a damaged one is sampled again or replaced)."""
+    try:
+        return arc.initial, arc.initial_step
+    except ArchiveError as exc:
+        s = arc.settings
+        if s["init"] in SAMPLERS and s["seed"] is not None and arc.initial_step == 0:
+            problems.append(
+                f"the initial state is unreadable ({exc}); sampled it again ({s['init']}, seed {s['seed']})"
+            )
+            again = Ensemble.sample(arc.params, arc.points, s["init"], s["seed"], threads=1)
+            return again.state(), 0
+        problems.append(f"the initial state is unreadable ({exc}); the checkpoint at step {step} replaces it")
+        return state, step
 
 
 def salvage(path: str | os.PathLike, *, threads: int | None = None, device: str | None = None) -> Salvage:
@@ -89,6 +148,7 @@ def salvage(path: str | os.PathLike, *, threads: int | None = None, device: str 
         constants than this kernel's (a resumed run would not continue it bit for bit).
     """
     path = os.fspath(path)
+    problems: list[str] = []
     with Archive(path, locking=False) as arc:
         s = arc.settings
         for key, ours in kernel_constants().items():
@@ -98,32 +158,38 @@ def salvage(path: str | os.PathLike, *, threads: int | None = None, device: str 
                     "a resumed run would not continue it bit for bit"
                 )
         state, step = arc.checkpoint()
-        ensemble = arc._restore(state, step, threads, device)
-        series = arc.series
-        keep = int(np.searchsorted(series["step"], step, side="right"))
-        snaps = arc.snapshots
-        kept = int(np.searchsorted(snaps.steps, step, side="right"))
+        ensemble = arc.restore(state, step, threads, device)
+        series, ok = _readable_rows(arc, "series", SERIES_FIELDS, arc.rows, problems)
+        keep = ok & (series["step"] <= step)
+        with reading(path, "/snapshots/indices"):
+            indices = arc._file["snapshots"]["indices"][:]
+        snaps, snap_ok = _readable_rows(
+            arc, "snapshots", ("step", *SNAPSHOT_FIELDS), arc.snapshot_count, problems
+        )
+        kept = snap_ok & (snaps["step"] <= step)
+        initial, initial_step = _initial(arc, state, step, problems)
         layout = {
             "params": arc.params,
-            "settings": arc._stored_settings(),
+            "settings": dict(s),
             "versions": dict(arc.versions),
             "created": arc.created,
-            "initial": arc.initial,
-            "initial_step": arc.initial_step,
-            "indices": snaps.indices,
+            "initial": initial,
+            "initial_step": initial_step,
+            "indices": indices,
+            "target_step": arc.target_step if arc.target_step is not None else -1,
         }
+    if problems:
+        warnings.warn(f"{path}: {'; '.join(problems)}; skipped", ArchiveWarning, stacklevel=3)
+    width = indices.size
     return Salvage(
         ensemble=ensemble,
         state=state,
         step=step,
         layout=layout,
-        series={name: values[:keep] for name, values in series.items()},
+        series={name: values[keep] for name, values in series.items()},
         snapshots=Snapshots(
-            steps=snaps.steps[:kept],
-            indices=snaps.indices,
-            x=snaps.x[:kept],
-            p=snaps.p[:kept],
-            ftle=snaps.ftle[:kept],
-            A=snaps.A[:kept],
+            steps=snaps["step"][kept],
+            indices=indices,
+            **{name: snaps[name][kept].reshape(int(kept.sum()), width) for name in SNAPSHOT_FIELDS},
         ),
     )

@@ -1,12 +1,14 @@
 """The ``warpratchet`` command.
 
 One module per subcommand (:mod:`.theory`, :mod:`.run`, :mod:`.resume`, :mod:`.inspect`,
-:mod:`.sweep`, :mod:`.sumrule`, :mod:`.figures`), each with ``add(subparsers)`` declaring its
-flags and ``command(args)`` running it; :mod:`.common` holds what they share (the one-line error,
-JSON output, flags built from :class:`~warpratchet.spec.RunSpec`), :mod:`.sinks` the output
+:mod:`.sweep`, :mod:`.sumrule`, :mod:`.verify`, :mod:`.figures`), each with ``add(subparsers)`` declaring
+its flags and ``command(args)`` running it; :mod:`.common` holds what they share (the one-line
+error, JSON output, flags built from :class:`~warpratchet.spec.RunSpec`), :mod:`.sinks` the output
 options of ``run``. Bad input (argparse errors, ``ValueError`` from the API, unreadable files)
-prints one line on stderr and exits with status 2, never a traceback; Ctrl-C prints one line and
-exits with 130 (128 + SIGINT).
+prints one line on stderr and exits with status 2, never a traceback; a write the system refuses
+(disk full, read-only, permissions: :class:`warpratchet._files.StorageError`) one line and
+status 1; Ctrl-C prints one line (where it stopped, what was kept: :class:`.common.Interrupted`)
+and exits with 130 (128 + SIGINT).
 
 A new subcommand is a new module with ``add`` and ``command``, listed in :data:`SUBCOMMANDS`,
 with its examples in :data:`EXAMPLES`.
@@ -18,7 +20,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from . import figures, inspect, resume, run, sumrule, sweep, theory
+from . import figures, inspect, resume, run, sumrule, sweep, theory, verify
 from .common import (
     Interrupted,
     Parser,
@@ -46,6 +48,7 @@ SUBCOMMANDS = {
     "run": run,
     "resume": resume,
     "inspect": inspect,
+    "verify": verify,
     "sweep": sweep,
     "sumrule": sumrule,
     "figures": figures,
@@ -118,6 +121,8 @@ def build_parser() -> Parser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (2 for bad input, 130 on Ctrl-C)."""
+    from .._files import StorageError
+
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
         if argv[:1] == ["figures"]:  # its options are warpratchet_viz's: passed through unparsed
@@ -128,6 +133,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         except SystemExit as exc:  # --help, --version (0); parse errors raise UsageError instead
             return exc.code if isinstance(exc.code, int) else 0
         return SUBCOMMANDS[args.command].command(args)
+    except StorageError as exc:  # not the user's input: the disk or the folder refused a write
+        print(f"warpratchet: error: {exc}", file=sys.stderr)
+        return 1
     except UsageError as exc:
         print(f"{exc.prog}: error: {exc}{exc.hint}", file=sys.stderr)
         return 2

@@ -1,4 +1,10 @@
-"""``warpratchet inspect``: parameters, progress and latest summary of an archive (also while it runs)."""
+"""``warpratchet inspect``: parameters, progress and latest summary of an archive (also while it runs).
+
+Progress is the verified checkpoint, the rows, and (format v2, which stores the run's target step)
+the percentage done with an estimate of the kernel time left from the recorded wall times. A
+damaged or non-finite checkpoint is a ``warpratchet: warning:`` line on stderr naming what a
+resume would start from instead.
+"""
 
 from __future__ import annotations
 
@@ -12,6 +18,16 @@ def add(sub) -> None:
     p = sub.add_parser("inspect", help="parameters, progress and latest summary of an archive")
     p.add_argument("archive", help="HDF5 archive written by run --out")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
+def _duration(seconds: float) -> str:
+    """``42 s``, ``3 min 20 s``, ``2 h 05 min``."""
+    seconds = round(seconds)
+    if seconds < 60:
+        return f"{seconds} s"
+    if seconds < 3600:
+        return f"{seconds // 60} min {seconds % 60:02d} s"
+    return f"{seconds // 3600} h {seconds % 3600 // 60:02d} min"
 
 
 def command(args: argparse.Namespace) -> int:
@@ -38,7 +54,7 @@ def command(args: argparse.Namespace) -> int:
         if s["snapshot_every"]
         else "no snapshots"
     )
-    init = s.get("init", s.get("sampler"))  # format v1 archives call the sampler "sampler"
+    init = s["init"]
     print(
         f"  {s['points']} points ({init}, seed {s['seed']}), chunks of {s['chunk_steps']} steps, "
         f"checkpoint every {s['checkpoint_every']}, {snaps}"
@@ -47,6 +63,14 @@ def command(args: argparse.Namespace) -> int:
         f"  progress: checkpoint at step {info['checkpoint_step']}, {info['rows']} series rows, "
         f"{info['snapshots']} snapshots"
     )
+    if info["target_step"] is not None:
+        done = f"  target: step {info['target_step']}, {100 * info['done']:.1f}% done"
+        if info["eta_seconds"] == 0:
+            done += " (complete)"
+        elif info["eta_seconds"] is not None:
+            done += f", about {_duration(info['eta_seconds'])} of kernel time to go"
+            done += f" at {info['steps_per_second']:.3g} steps/s"
+        print(done)
     if last is None:
         print("  latest: no chunk recorded yet")
     else:

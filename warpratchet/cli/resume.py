@@ -69,6 +69,11 @@ def command(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     try:
         run_to(ensemble, args.steps, [ProgressBar(disable=args.quiet), sink], sink.chunk_steps)
+    except KeyboardInterrupt:
+        raise KeyboardInterrupt(
+            f"{args.archive} keeps the checkpoint at step {sink.checkpoint_step}; "
+            "run the same command again to continue"
+        ) from None
     finally:
         sink.close()
     seconds = time.perf_counter() - start

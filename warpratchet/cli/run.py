@@ -15,7 +15,7 @@ import time
 from typing import Any
 
 from ..spec import RunSpec
-from .common import Interrupted, ProgressBar, emit_json, spec_flags, spec_from_args
+from .common import Interrupted, ProgressBar, emit_json, print_warnings, spec_flags, spec_from_args
 from .sinks import add_archive_flags, add_rerun_flags, archive_plan, rerun_sink
 
 #: The RunSpec settings ``run`` takes as flags: all but the classifier (``run`` reports the FTLE's
@@ -87,44 +87,73 @@ def print_report(report: dict[str, Any], as_json: bool) -> None:
         print(f"  {report['seconds']:.2f} s, {report['point_steps_per_second'] / 1e6:.0f} M point-steps/s")
 
 
+def _archive(args: argparse.Namespace, spec: RunSpec, plan: dict[str, Any]):
+    """``(sink, ensemble)``: a new archive of a sampled ensemble, or the archive resumed (same run)."""
+    import warnings
+
+    from ..archive import ArchiveSink, ArchiveWarning
+    from ..ensemble import Ensemble
+
+    if "resume" in plan and plan["resume"] == spec.steps:  # complete: report it, touch nothing
+        from ..archive import open_archive
+
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ArchiveWarning)
+            with open_archive(args.out) as arc:
+                ensemble = arc.ensemble(threads=spec.threads, device=spec.device)
+        print_warnings(caught)
+        return None, ensemble
+    if "resume" in plan:  # the same command again: continue where the archive stands
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", ArchiveWarning)
+            sink, ensemble = ArchiveSink.resume(args.out, threads=spec.threads, device=spec.device)
+        print_warnings(caught)
+        return sink, ensemble
+    ensemble = Ensemble.sample(
+        spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
+    )
+    return ArchiveSink(args.out, ensemble, **plan), ensemble
+
+
 def command(args: argparse.Namespace) -> int:
     from ..ensemble import Ensemble
 
     spec = spec_from_args(args)
     plan = archive_plan(args, spec)  # bad archive flags fail before any work
     recorder = rerun_sink(args, spec)  # so do bad recording flags
-    ensemble = Ensemble.sample(
-        spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
-    )
     observers = [ProgressBar(disable=args.quiet)]
     chunk_steps = spec.chunk_steps
     sink = None
     if plan is not None:
-        from ..archive import ArchiveSink
-
-        sink = ArchiveSink(args.out, ensemble, **plan)
-        observers.append(sink)
-        chunk_steps = sink.chunk_steps
+        sink, ensemble = _archive(args, spec, plan)
+        if sink is not None:
+            observers.append(sink)
+            chunk_steps = sink.chunk_steps
+    else:
+        ensemble = Ensemble.sample(
+            spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
+        )
     if recorder is not None:
         observers.append(recorder)  # its frames end chunks themselves (Observer.next_stop)
+    first = ensemble.step
     start = time.perf_counter()
     try:
-        ensemble.run(spec.steps, observers, chunk_steps=chunk_steps)
+        ensemble.run(spec.steps - first, observers, chunk_steps=chunk_steps)
     except KeyboardInterrupt:
         # Ensemble.run stops between chunks, so the step is exact (and the sinks are closed).
         detail = f"at step {ensemble.step} of {spec.steps}"
         if sink is not None:
             detail += (
-                f"; {args.out} holds the run up to its checkpoint at step {sink.checkpoint_step}: "
-                f"warpratchet resume {args.out} --steps {spec.steps} continues it"
+                f"; {args.out} keeps the checkpoint at step {sink.checkpoint_step}: "
+                "run the same command again to continue"
             )
         raise Interrupted(detail) from None
     finally:
         if sink is not None:
             sink.close()
     seconds = time.perf_counter() - start
-    report = run_report(ensemble, seconds, spec.steps, spec.threshold)
-    if sink is not None:
+    report = run_report(ensemble, seconds, spec.steps - first, spec.threshold)
+    if plan is not None:
         report["archive"] = args.out
     if recorder is not None and args.rerun is not None:
         report["recording"] = args.rerun

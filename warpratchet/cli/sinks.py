@@ -1,14 +1,20 @@
 """The output options of ``run``: an archive (``--out``, docs/archive.md) and a rerun recording.
 
 Each sink's flags are checked up front, before any work, so a bad combination costs nothing:
-``--snapshot-every`` without ``--out``, ``--rerun-every`` without ``--rerun``, an existing file.
-The archive's schedule options are the archive's, not the run's (they change what is written,
-never a number): :func:`warpratchet.archive.schedule` checks them.
+``--snapshot-every`` without ``--out``, ``--rerun-every`` without ``--rerun``, a file that is not
+an archive of this run. The archive's schedule options are the archive's, not the run's (they
+change what is written, never a number): :func:`warpratchet.archive.schedule` checks them.
+
+Resuming is one behaviour for ``run`` and ``sweep``: the same command again continues what an
+interrupted one left. ``run --out FILE`` on an archive of the same run (map, ensemble, threshold
+and schedule) resumes it from its checkpoint to ``--steps``; on anything else it refuses and
+names the difference (``--force`` replaces the file).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import sys
 from typing import Any
@@ -59,9 +65,9 @@ def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | No
             "--out FILE",
         )
         return None
-    if os.path.lexists(args.out) and not args.force:
-        raise UsageError(f"{args.out} exists; refusing to overwrite it (pass --force to replace it)")
     schedule(spec.points, spec.chunk_steps, args.snapshot_every, args.checkpoint_every)  # ValueError if bad
+    if os.path.lexists(args.out) and not args.force:
+        return {"resume": _resumable(args, spec)}
     return {
         "force": args.force,
         "snapshot_every": args.snapshot_every,
@@ -70,6 +76,52 @@ def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | No
         "chunk_steps": spec.chunk_steps,
         "threshold": spec.threshold,
     }
+
+
+def _resumable(args: argparse.Namespace, spec: RunSpec) -> int:
+    """The checkpoint step of ``--out`` if it is an archive of this same run; UsageError otherwise."""
+    import h5py
+
+    from ..archive import ArchiveError, open_archive
+
+    replace = "choose another file or pass --force to replace it"
+    if not os.path.isfile(args.out) or not h5py.is_hdf5(args.out):
+        raise UsageError(f"{args.out} exists and is not a warpratchet archive; {replace}")
+    try:
+        with open_archive(args.out) as arc:
+            stored = {**arc.settings, **arc.params.as_dict()}
+            checkpoint = arc.checkpoint_step
+    except ArchiveError as exc:
+        raise UsageError(f"{exc}; {replace}") from None
+    points = math.isqrt(spec.points) ** 2 if spec.init == "grid" else spec.points  # as run
+    asked = {
+        "K": spec.K,
+        "b1": spec.b1,
+        "b2": spec.b2,
+        "init": spec.init,
+        "points": points,
+        "seed": spec.seed,
+        "threshold": spec.threshold,
+        "snapshot_every": args.snapshot_every,
+    }
+    given = {
+        "snapshot_points": args.snapshot_points,
+        "checkpoint_every": args.checkpoint_every,
+        "chunk_steps": spec.chunk_steps,
+    }
+    asked.update({k: v for k, v in given.items() if v is not None})
+    for key, value in asked.items():
+        if stored.get(key) != value:
+            raise UsageError(
+                f"{args.out} holds a different run ({key} is {stored.get(key)!r} in the file, "
+                f"{value!r} requested); {replace}"
+            )
+    if checkpoint > spec.steps:
+        raise UsageError(
+            f"{args.out} is already at step {checkpoint}, beyond --steps {spec.steps}; "
+            f"inspect it with: warpratchet inspect {args.out}"
+        )
+    return checkpoint
 
 
 # -- recordings ---------------------------------------------------------------------------------

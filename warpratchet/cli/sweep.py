@@ -210,7 +210,7 @@ def command(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     except KeyboardInterrupt:
         kept = (
-            f"{args.out} keeps them: the same command computes only the missing points"
+            f"{args.out} keeps them: run the same command again to compute the rest"
             if args.out is not None
             else "nothing was saved (no --out)"
         )

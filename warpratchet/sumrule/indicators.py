@@ -19,6 +19,7 @@ from ..ensemble import Ensemble
 from ..errors import check_choice
 from ..observables import default_lyapunov_threshold, lyapunov
 from ..params import MapParams
+from ..spec import CLASSIFIERS  # the one definition: RunSpec's ``classifier`` choices
 
 __all__ = [
     "CLASSIFIERS",
@@ -29,8 +30,6 @@ __all__ = [
     "chaotic_by",
 ]
 
-#: Chaos indicators understood by :func:`chaotic_by`.
-CLASSIFIERS = ("ftle", "megno", "fli")
 #: Mean MEGNO above which an orbit counts as chaotic. Regular orbits tend to 2 (0 when the
 #: tangent map is periodic, as in the period-1 islands at K = 3 where ``DM^3 = I``, Eq. eig);
 #: chaotic ones grow like ``sigma n / 2``. Twice the regular limit leaves room for the O(1)

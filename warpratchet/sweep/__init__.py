@@ -10,15 +10,28 @@ Ab), and the numerical A, FTLE statistics and chaotic fraction of
 The package has three rooms:
 
 * :mod:`~warpratchet.sweep.paths`: the paper's paths and grids (Figs. 5-9), pure;
-* :mod:`~warpratchet.sweep.file`: the HDF5 sweep file (layout, resume, reading);
+* :mod:`~warpratchet.sweep.records`: format, versions and the columns of a row;
+* :mod:`~warpratchet.sweep.file`: writing the HDF5 sweep file (layout, resume, ``--force``);
+* :mod:`~warpratchet.sweep.reading`: :func:`read_sweep`, :func:`read_definition`;
+* :mod:`~warpratchet.sweep.verify`: :func:`verify_sweep` (``warpratchet verify``);
 * :mod:`~warpratchet.sweep.run`: one point (:func:`run_point`), seeds (:func:`point_seed`),
   and the local and Dask executors (:func:`run_sweep`).
 """
 
 from ..spec import SweepSpec
-from .file import FORMAT, FORMAT_VERSION, ROW_DTYPE, ROW_FIELDS, TIMING_FIELDS, read_definition, read_sweep
 from .paths import DOMAINS, fixed_b1_path, grid_points, k_path, line_path, maximal_path
+from .reading import read_definition, read_sweep
+from .records import (
+    FORMAT,
+    FORMAT_VERSION,
+    READABLE_VERSIONS,
+    ROW_DESCRIPTIONS,
+    ROW_DTYPE,
+    ROW_FIELDS,
+    TIMING_FIELDS,
+)
 from .run import point_seed, run_point, run_sweep
+from .verify import verify_sweep
 
 __all__ = [
     "SweepSpec",
@@ -33,9 +46,12 @@ __all__ = [
     "run_sweep",
     "read_sweep",
     "read_definition",
+    "verify_sweep",
     "ROW_DTYPE",
     "ROW_FIELDS",
     "TIMING_FIELDS",
     "FORMAT",
     "FORMAT_VERSION",
+    "READABLE_VERSIONS",
+    "ROW_DESCRIPTIONS",
 ]

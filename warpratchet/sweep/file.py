@@ -1,116 +1,65 @@
 """The sweep file: one HDF5 file per sweep, one row per finished point, resumable.
 
-Layout (format ``warpratchet-sweep``, version :data:`FORMAT_VERSION`)::
+Layout (format ``warpratchet-sweep``, version :data:`FORMAT_VERSION`; HDF5 1.10 object formats,
+:data:`warpratchet._files.LIBVER`, so HDF5 1.10 tools read it)::
 
-    attrs   format = "warpratchet-sweep", format_version = 1, warpratchet_version,
+    attrs   format = "warpratchet-sweep", format_version = 2, warpratchet_version, features = "",
             spec = JSON of SweepSpec.as_dict()   (RunSpec's names: points, steps, init, seed, threshold)
     parameters   float64 (n, 3): K, b1, b2 of every point, in sweep order
     rows         compound (m,), resizable: one record per finished point, in completion order
-    rows_valid   int64 scalar: how many records of ``rows`` are complete
+                 (attributes column_units, column_long_names: one per column, ROW_DESCRIPTIONS)
+    rows_valid   int64 (1,): how many records of ``rows`` are complete
 
-Each record is written and flushed before ``rows_valid`` is raised and flushed again, so a
-process killed at any moment leaves a file whose first ``rows_valid`` records are complete;
-running the same sweep with the same file resumes it and computes only the missing points.
+Every dataset is chunked with a Fletcher-32 checksum (a flipped bit is an error, never a changed
+number) and has ``units`` and ``long_name``; strings are fixed-length attributes in checksummed
+object headers. The writer uses SWMR, so ``read_sweep`` may read while a sweep writes. Each
+record is written and flushed before ``rows_valid`` is raised and flushed again, so a process
+killed at any moment leaves a file whose first ``rows_valid`` records are complete; running
+the same sweep with the same file resumes it and computes only the missing points (the same
+rule as ``run --out``). Version 1 (release 0.1.0: no checksums, a scalar ``rows_valid``) still
+reads and resumes; a resume rebuilds it as version 2. Optional groups follow the archive's rule
+(``features``, docs/archive.md).
 The columns (:data:`ROW_FIELDS`) carry RunSpec's names for its settings (``K, b1, b2, points,
 steps, seed, init, threshold``); ``threshold`` is the value used, the default resolved.
 """
 
 from __future__ import annotations
 
-import json
 import os
 from typing import Any
 
 import h5py
 import numpy as np
 
-from ..errors import FileFormatError
-from ..params import MapParams
-from ..spec import SweepSpec
-
-__all__ = [
-    "FORMAT",
-    "FORMAT_VERSION",
-    "ROW_DTYPE",
-    "ROW_FIELDS",
-    "TIMING_FIELDS",
-    "read_sweep",
-    "read_definition",
-]
-
-FORMAT = "warpratchet-sweep"
-FORMAT_VERSION = 1
-
-#: Columns of a sweep row, in order, with their HDF5 types.
-ROW_DTYPE = np.dtype(
-    [
-        ("index", "<i8"),  # position of the point in the sweep
-        ("K", "<f8"),
-        ("b1", "<f8"),
-        ("b2", "<f8"),
-        ("domain", "S4"),  # "LR", "L", "R" or "none" (Fig. 3)
-        ("A_theory", "<f8"),  # Eq. (Aa)/(Ab) at K = 3; NaN elsewhere
-        ("A", "<f8"),  # mean A_n over chaotic points, per iteration (Eq. An)
-        ("A_stderr", "<f8"),
-        ("lyapunov", "<f8"),  # mean FTLE over chaotic points, per iteration
-        ("lyapunov_std", "<f8"),
-        ("lyapunov_min", "<f8"),
-        ("chaotic_fraction", "<f8"),
-        ("chaotic_points", "<i8"),
-        ("points", "<i8"),  # ensemble size actually run (a grid rounds down to a square)
-        ("steps", "<i8"),
-        ("seed", "<i8"),  # the point's own seed, point_seed(spec.seed, index)
-        ("init", "S8"),
-        ("threshold", "<f8"),  # FTLE threshold used for the chaotic mask
-        ("seconds", "<f8"),  # wall time of the ensemble run on whichever machine ran it
-    ]
+from .._files import (
+    LIBVER,
+    StorageError,
+    abandon_h5,
+    check_new_path,
+    claim,
+    ensure_space,
+    publish,
+    storage_cause,
+    storage_errors,
+    sync_h5,
+    temporary_beside,
+    try_lock,
 )
-ROW_FIELDS: tuple[str, ...] = tuple(ROW_DTYPE.names)
-#: Row fields that depend on the machine, not on (params, spec, index): leave them out when
-#: comparing rows from different runs or executors.
-TIMING_FIELDS: tuple[str, ...] = ("seconds",)
+from ..errors import FileFormatError
+from ..spec import SweepSpec, attr_value
+from . import records
+from .reading import definition_mismatch, open_for_reading, read_definition, read_sweep, valid_rows
+from .records import FORMAT, FORMAT_VERSION, READABLE_VERSIONS, ROW_DTYPE, ROW_FIELDS, to_record
 
-_STRING_FIELDS = tuple(name for name in ROW_FIELDS if ROW_DTYPE[name].kind == "S")
-_INT_FIELDS = tuple(name for name in ROW_FIELDS if ROW_DTYPE[name].kind == "i")
+# read_sweep and read_definition are re-exported: ``from warpratchet.sweep.file import read_sweep``
+# keeps working.
 
+try:  # advisory locks; absent on Windows
+    import fcntl
+except ImportError:  # pragma: no cover
+    fcntl = None
 
-def _record(row: dict[str, Any]) -> np.ndarray:
-    record = np.zeros((), dtype=ROW_DTYPE)
-    for name in ROW_FIELDS:
-        record[name] = row[name].encode("ascii") if name in _STRING_FIELDS else row[name]
-    return record
-
-
-def _row(record: np.void) -> dict[str, Any]:
-    row: dict[str, Any] = {}
-    for name in ROW_FIELDS:
-        value = record[name]
-        if name in _STRING_FIELDS:
-            row[name] = bytes(value).decode("ascii")
-        elif name in _INT_FIELDS:
-            row[name] = int(value)
-        else:
-            row[name] = float(value)
-    return row
-
-
-def _definition_mismatch(f: h5py.File, params: np.ndarray, spec: SweepSpec) -> str | None:
-    """Why the sweep stored in ``f`` is not (params, spec), or None if it is the same sweep."""
-    stored_spec = json.loads(f.attrs["spec"])
-    for key, value in spec.as_dict().items():
-        if stored_spec.get(key) != value:
-            return f"{key} is {stored_spec.get(key)!r} in the file, {value!r} requested"
-    stored = f["parameters"][()]
-    if stored.shape != params.shape:
-        return f"the file has {stored.shape[0]} points, {params.shape[0]} requested"
-    differ = np.flatnonzero(np.any(stored != params, axis=1))
-    if differ.size:
-        i = int(differ[0])
-        return (
-            f"point {i} is (K, b1, b2) = {tuple(stored[i].tolist())} in the file, "
-            f"{tuple(params[i].tolist())} requested"
-        )
-    return None
+__all__ = ["SweepFile", "FORMAT", "FORMAT_VERSION", "ROW_FIELDS", "read_sweep", "read_definition"]
 
 
 def _version() -> str:
@@ -119,8 +68,52 @@ def _version() -> str:
     return __version__
 
 
+def _describe(ds: h5py.Dataset, units: str, long_name: str) -> None:
+    ds.attrs["units"] = np.bytes_(units.encode())
+    ds.attrs["long_name"] = np.bytes_(long_name.encode())
+
+
+def _create(f: h5py.File, params: np.ndarray, spec: SweepSpec, rows: list[dict[str, Any]]) -> None:
+    """The whole layout in a new file, with ``rows`` already valid (SWMR allows no new objects later)."""
+    for key, value in {
+        "format": FORMAT,
+        "format_version": FORMAT_VERSION,
+        "warpratchet_version": _version(),
+        "spec": spec.to_json(),
+        "features": "",
+    }.items():
+        # Fixed-length strings live in the checksummed object header (variable-length ones do not).
+        f.attrs[key] = np.bytes_(value.encode()) if isinstance(value, str) else value
+    parameters = f.create_dataset(
+        "parameters", data=params, chunks=(max(1, min(len(params), 4096)), 3), fletcher32=True
+    )
+    parameters.attrs["columns"] = np.bytes_(b"K, b1, b2")
+    _describe(parameters, "1", "K, b1, b2 of every point, in sweep order")
+    stored = np.array([to_record(row) for row in rows], dtype=ROW_DTYPE).reshape(len(rows))
+    ds = f.create_dataset(
+        "rows", data=stored, maxshape=(None,), dtype=ROW_DTYPE, chunks=(64,), fletcher32=True
+    )
+    _describe(ds, "see column_units", "one record per finished point, in completion order")
+    ds.attrs["column_units"] = np.array(
+        [records.ROW_DESCRIPTIONS[n][0].encode() for n in ROW_FIELDS], dtype="S16"
+    )
+    ds.attrs["column_long_names"] = np.array(
+        [records.ROW_DESCRIPTIONS[n][1].encode() for n in ROW_FIELDS], dtype="S64"
+    )
+    valid = f.create_dataset("rows_valid", data=np.array([len(rows)], np.int64), chunks=(1,), fletcher32=True)
+    _describe(valid, "1", "how many records of rows are complete (raised after them)")
+
+
 class SweepFile:
-    """An open sweep file: created, or reopened after checking it holds the same sweep.
+    """A sweep file being written: created, or continued after checking it holds the same sweep.
+
+    A new file (or, with ``force``, the replacement of an old one) is built beside its path,
+    made durable and renamed into place, so the path never holds half a file and a replaced
+    file is never deleted before its replacement exists. An existing file of the same sweep is
+    continued: its finished rows are read, and when the first new row arrives the file is
+    rebuilt (same way, the rows kept) in today's format and reopened for appending; a sweep
+    with nothing left to compute leaves the file untouched. A writer holds a shared ``flock``
+    on its file; a second sweep (or ``force``) needs an exclusive one and refuses a file in use.
 
     Parameters
     ----------
@@ -131,106 +124,126 @@ class SweepFile:
     spec : SweepSpec
         The ensemble run at every point.
     force : bool
-        Replace a file that holds anything else.
+        Replace a file that holds anything else (refused while another process uses it).
     """
 
     def __init__(self, path: str | os.PathLike, params: np.ndarray, spec: SweepSpec, force: bool) -> None:
         self.path = os.fspath(path)
-        if os.path.exists(self.path):
-            if force:
-                # TODO(house): use the shared file-safety module (build beside, fsync, rename; issue 13).
-                os.remove(self.path)
-            else:
-                self.file = self._reopen(params, spec)
-                return
-        # "w-" fails if the file appeared meanwhile: a user's file is never truncated.
-        self.file = h5py.File(self.path, "w-")
-        f = self.file
-        f.attrs["format"] = FORMAT
-        f.attrs["format_version"] = FORMAT_VERSION
-        f.attrs["warpratchet_version"] = _version()
-        f.attrs["spec"] = spec.to_json()
-        parameters = f.create_dataset("parameters", data=params)
-        parameters.attrs["columns"] = "K, b1, b2"
-        f.create_dataset("rows", shape=(0,), maxshape=(None,), dtype=ROW_DTYPE, chunks=(64,))
-        f.create_dataset("rows_valid", data=np.int64(0))
-        f.flush()
-
-    def _reopen(self, params: np.ndarray, spec: SweepSpec) -> h5py.File:
+        self.params, self.spec = params, spec
+        self.file: h5py.File | None = None
+        self._lock_fd: int | None = None
+        self._rows: list[dict[str, Any]] = []
         replace = "choose another file or pass force=True (CLI: --force) to replace it"
+        try:
+            exists = check_new_path(self.path, force=True)
+            if exists:
+                self._lock_fd = claim(self.path, exclusive=True)  # nobody else writes or rebuilds it
+                if not force:
+                    self._rows = self._existing_rows(replace)
+            if not exists or force:
+                self._build(replace=exists)
+        except (FileExistsError, FileNotFoundError, BlockingIOError) as exc:
+            self._release()
+            raise FileFormatError(str(exc)) from None
+        except BaseException:
+            self._release()
+            raise
+        if fcntl is not None and self._lock_fd is not None:
+            fcntl.flock(self._lock_fd, fcntl.LOCK_SH | fcntl.LOCK_NB)  # readers welcome, writers not
+
+    def _existing_rows(self, replace: str) -> list[dict[str, Any]]:
         if not h5py.is_hdf5(self.path):
             raise FileFormatError(f"{self.path} exists and is not an HDF5 sweep file; {replace}")
-        try:
-            f = h5py.File(self.path, "r+")
-        except OSError as exc:
-            # Typically a lock held by a sweep still writing it: never suggest replacing that one.
-            raise FileFormatError(
-                f"cannot open {self.path} for writing (is another sweep writing it?): {exc}"
-            ) from None
-        try:
-            if f.attrs.get("format") != FORMAT or not {"parameters", "rows", "rows_valid"} <= set(f):
-                raise FileFormatError(f"{self.path} exists and is not a warpratchet sweep file; {replace}")
-            if f.attrs.get("format_version") != FORMAT_VERSION:
+        with open_for_reading(
+            self.path, foreign=f"exists and is not a warpratchet sweep file; {replace}"
+        ) as f:
+            version = attr_value(f.attrs.get("format_version"))
+            if version not in READABLE_VERSIONS:
                 raise FileFormatError(
-                    f"{self.path} has sweep format version {f.attrs.get('format_version')!r}, "
-                    f"this warpratchet writes {FORMAT_VERSION}; {replace}"
+                    f"{self.path} has sweep format version {version!r}, this warpratchet reads "
+                    f"{', '.join(map(str, READABLE_VERSIONS))}; {replace}"
                 )
-            why = _definition_mismatch(f, params, spec)
+            why = definition_mismatch(f, self.params, self.spec)
             if why is not None:
                 raise FileFormatError(f"{self.path} holds a different sweep ({why}); {replace}")
-        except BaseException:
-            f.close()
-            raise
-        return f
+            return valid_rows(f, self.path)
+
+    def _build(self, *, replace: bool) -> None:
+        """Write the layout with the rows so far beside the path, publish it, keep it open (SWMR)."""
+        count = len(self._rows)
+        with storage_errors(self.path, "create" if not replace else "write", self._hint()):
+            # The layout is a few kB, each block of 64 records 10 kB: ask for room before HDF5 writes.
+            ensure_space(self.path, 65536 + ROW_DTYPE.itemsize * (count + 64), "the sweep file")
+            with temporary_beside(self.path) as tmp:
+                f = h5py.File(tmp, "w", libver=LIBVER, locking=False)
+                try:
+                    _create(f, self.params, self.spec, self._rows)
+                    f.swmr_mode = True
+                    sync_h5(f)  # durable before it gets its name
+                    fd = os.open(tmp, os.O_RDONLY)
+                    try_lock(fd, exclusive=False)  # held before the name exists: no one slips in
+                    try:
+                        publish(tmp, self.path, replace=replace)
+                    except BaseException:
+                        os.close(fd)
+                        raise
+                except BaseException:
+                    abandon_h5(f)
+                    raise
+        self._release()
+        self.file, self._lock_fd, self._count = f, fd, count
+
+    def _hint(self) -> str:
+        return (
+            f"; {self.path} keeps its {len(self._rows)} finished point(s): once there is space, "
+            "run the same command again to compute the rest"
+        )
 
     def rows(self) -> list[dict[str, Any]]:
         """The complete records, in file order."""
-        valid = int(self.file["rows_valid"][()])
-        return [_row(record) for record in self.file["rows"][:valid]]
+        return list(self._rows)
 
     def append(self, row: dict[str, Any]) -> None:
         """Write one row (keys :data:`ROW_FIELDS`), then declare it valid: each step flushed."""
-        rows, valid = self.file["rows"], self.file["rows_valid"]
-        n = int(valid[()])
-        # A record past rows_valid is the remnant of an interrupted write: overwrite it.
-        if rows.shape[0] < n + 1:
-            rows.resize((n + 1,))
-        rows[n] = _record(row)
-        self.file.flush()  # the record is on disk before it is declared valid
-        valid[()] = n + 1
-        self.file.flush()
+        if self.file is None:
+            self._build(replace=True)  # continue an existing file: rebuilt in today's format
+        f = self.file
+        try:
+            with storage_errors(self.path, "write", self._hint()):
+                rows, valid = f["rows"], f["rows_valid"]
+                n = self._count
+                if n % 64 == 0:  # the first record of a new chunk allocates it
+                    ensure_space(self.path, 64 * ROW_DTYPE.itemsize, "the next rows")
+                # A record past rows_valid is the remnant of an interrupted write: overwrite it.
+                if rows.shape[0] < n + 1:
+                    rows.resize((n + 1,))
+                rows[n] = to_record(row)
+                f.flush()  # the record is on disk before it is declared valid
+                valid[0] = n + 1
+                f.flush()
+        except BaseException as exc:
+            if storage_cause(exc) is not None or isinstance(exc, StorageError):
+                abandon_h5(f)  # as a killed sweep leaves it: resumable once there is space
+                self.file = None
+                self._release()
+            raise
+        self._count = n + 1
+        self._rows.append(row)
+
+    def _release(self) -> None:
+        if self._lock_fd is not None:
+            os.close(self._lock_fd)
+            self._lock_fd = None
 
     def close(self) -> None:
-        self.file.close()
-
-
-def _open_for_reading(path: str | os.PathLike) -> h5py.File:
-    path = os.fspath(path)
-    try:
-        f = h5py.File(path, "r", locking=False)
-    except OSError as exc:
-        raise FileFormatError(f"cannot read sweep file {path}: {exc}") from None
-    if f.attrs.get("format") != FORMAT:
-        f.close()
-        raise FileFormatError(f"{path} is not a warpratchet sweep file")
-    return f
-
-
-def read_sweep(path: str | os.PathLike) -> list[dict[str, Any]]:
-    """The finished rows of a sweep file, in sweep order (keys :data:`ROW_FIELDS`).
-
-    An interrupted sweep gives only its finished points. Readable while a sweep is writing it
-    (no file lock is taken; rows are flushed one by one).
-    """
-    with _open_for_reading(path) as f:
-        valid = int(f["rows_valid"][()])
-        rows = [_row(record) for record in f["rows"][:valid]]
-    return sorted(rows, key=lambda row: row["index"])
-
-
-def read_definition(path: str | os.PathLike) -> tuple[list[MapParams], SweepSpec]:
-    """The points and spec a sweep file was created for (to resume it, or to plot what is missing)."""
-    with _open_for_reading(path) as f:
-        spec = SweepSpec.from_json(f.attrs["spec"])
-        params = [MapParams(*row) for row in f["parameters"][()].tolist()]
-    return params, spec
+        if self.file is not None and self.file.id.valid:
+            try:
+                with storage_errors(self.path, "write", self._hint()):
+                    self.file.close()
+            except BaseException:
+                abandon_h5(self.file)
+                raise
+            finally:
+                self.file = None
+                self._release()
+        self._release()

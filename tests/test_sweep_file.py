@@ -1,0 +1,135 @@
+"""The sweep file of format v2: checksums, --force that refuses a file in use and replaces atomically,
+reading while a sweep writes (issue 13 items 2, 4, 5)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import textwrap
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+from warpratchet import sweep as sweep_module
+from warpratchet.cli import main
+from warpratchet.errors import FileFormatError
+from warpratchet.sweep import SweepSpec, maximal_path, read_sweep, run_sweep
+from warpratchet.sweep.file import SweepFile
+
+SPEC = SweepSpec(points=60, steps=200, seed=2)
+POINTS = maximal_path([0.01, 0.05, 0.1])
+
+
+@pytest.fixture(scope="module")
+def finished(tmp_path_factory):
+    path = tmp_path_factory.mktemp("sweep") / "sweep.h5"
+    rows = run_sweep(POINTS, SPEC, out=path, progress=False)
+    return path, rows
+
+
+def _flip_bit(src, dst, offset: int, bit: int) -> None:
+    data = bytearray(open(src, "rb").read())
+    data[offset] ^= 1 << bit
+    open(dst, "wb").write(bytes(data))
+
+
+def test_every_dataset_is_checksummed_and_described(finished):
+    with h5py.File(finished[0], "r") as f:
+        assert f.attrs["format_version"] == 2
+        for name in ("parameters", "rows", "rows_valid"):
+            assert f[name].fletcher32 and f[name].attrs["units"] and f[name].attrs["long_name"], name
+        assert len(f["rows"].attrs["column_units"]) == len(f["rows"].dtype.names)
+
+
+def test_flipped_bits_never_change_a_reported_number(finished, tmp_path):
+    """Single-bit flips all over the file (the rows densely): an error, or the same rows."""
+    path, rows = finished
+    size = os.path.getsize(path)
+    with h5py.File(path, "r") as f:
+        info = f["rows"].id.get_chunk_info(0)
+        start, length = info.byte_offset, info.size
+    rng = np.random.default_rng(7)
+    offsets = list(range(start, start + length, 3)) + [int(o) for o in rng.integers(0, size, 300)]
+    outcomes = {"error": 0, "same": 0}
+    for i, offset in enumerate(offsets):
+        damaged = tmp_path / "flip.h5"
+        _flip_bit(path, damaged, offset, i % 8)
+        try:
+            got = read_sweep(damaged)
+        except FileFormatError:
+            outcomes["error"] += 1
+            continue
+        assert got == rows, f"bit {i % 8} of byte {offset} changed a row silently"
+        outcomes["same"] += 1
+    print(f"{len(offsets)} flips: {outcomes}")
+    # Every flip inside the stored records is caught by their checksum.
+    assert outcomes["error"] >= length // 3
+
+
+def test_force_refuses_a_file_another_sweep_is_writing(tmp_path, capsys):
+    path = tmp_path / "busy.h5"
+    other = SweepSpec(points=60, steps=300, seed=2)
+    writer = SweepFile(path, np.array([[p.K, p.b1, p.b2] for p in POINTS]), SPEC, force=False)
+    try:
+        before = path.read_bytes()
+        with pytest.raises(FileFormatError, match="in use by another process"):
+            run_sweep(POINTS, other, out=path, progress=False, force=True)
+        with pytest.raises(FileFormatError, match="in use by another process"):
+            run_sweep(POINTS, SPEC, out=path, progress=False)  # a second sweep of the same file too
+        argv = ["sweep", "--path", "maximal", "--b2", "0.01:0.1:3", "--points", "60", "--steps", "300"]
+        assert main([*argv, "--seed", "2", "--out", str(path), "--force", "--quiet"]) == 2
+        assert "in use by another process" in capsys.readouterr().err
+        assert path.read_bytes() == before
+    finally:
+        writer.close()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["busy.h5"]
+
+
+def test_force_replaces_atomically(finished, tmp_path, monkeypatch):
+    path = tmp_path / "old.h5"
+    path.write_bytes(finished[0].read_bytes())
+    before = path.read_bytes()
+    other = SweepSpec(points=60, steps=300, seed=2)
+
+    def fail(*args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(sweep_module.file, "publish", fail)
+    with pytest.raises(OSError, match="disk full"):
+        run_sweep(POINTS, other, out=path, progress=False, force=True)
+    assert path.read_bytes() == before  # the old file stays until its replacement exists
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.h5"]
+    monkeypatch.undo()
+    rows = run_sweep(POINTS, other, out=path, progress=False, force=True)
+    assert read_sweep(path) == rows and rows[0]["steps"] == 300
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["old.h5"]
+
+
+def test_read_sweep_while_a_sweep_writes(tmp_path):
+    """Reads of a live sweep file: every read gives complete rows, never an error (SWMR)."""
+    path = tmp_path / "live.h5"
+    script = textwrap.dedent(
+        f"""
+        from warpratchet.sweep import SweepSpec, maximal_path, run_sweep
+        run_sweep(maximal_path([0.01 + 0.005 * i for i in range(12)]), SweepSpec(points=300, steps=2000),
+                  out={str(path)!r}, progress=False)
+        """
+    )
+    proc = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True)
+    reads, seen = 0, set()
+    try:
+        while proc.poll() is None:
+            if path.exists():
+                rows = read_sweep(path)
+                seen.add(len(rows))
+                assert all(len(row) == 19 and row["steps"] == 2000 for row in rows)
+                reads += 1
+            time.sleep(0.002)
+    finally:
+        _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    assert len(read_sweep(path)) == 12
+    assert reads > 10 and len(seen) > 2, (reads, seen)

@@ -1,0 +1,229 @@
+"""``warpratchet verify``, single-bit flips, resuming past damage, non-finite states (issue 13.2, 13.5).
+
+The flip census (tried / detected / harmless / silently wrong) is printed with ``-s``; its
+acceptance: no flip ever changes a number a reader returns without an error or a warning, and
+``verify`` finds every flip that lands in stored data.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import warnings
+
+import h5py
+import numpy as np
+import pytest
+from support import cli, same_state
+
+from warpratchet import Ensemble, MapParams, open_archive
+from warpratchet.archive import ArchiveError, ArchiveSink, ArchiveWarning, NonFiniteStateError, run_to
+from warpratchet.archive.verify import verify_archive
+from warpratchet.cli import main
+
+PARAMS = MapParams(3.0, 0.1, 0.01)
+SCHEDULE = {"snapshot_every": 200, "snapshot_points": 40, "checkpoint_every": 400, "chunk_steps": 100}
+DATA = os.path.join(os.path.dirname(__file__), "data")
+
+
+def fresh() -> Ensemble:
+    return Ensemble.sample(PARAMS, 300, "strip", 5)
+
+
+@pytest.fixture(scope="module")
+def archived(tmp_path_factory):
+    path = tmp_path_factory.mktemp("verify") / "run.h5"
+    ens = fresh()
+    with ArchiveSink(path, ens, **SCHEDULE) as sink:
+        ens.run(1000, [sink], chunk_steps=sink.chunk_steps)
+    return path
+
+
+def _flip_bit(src, dst, offset: int, bit: int) -> None:
+    data = bytearray(open(src, "rb").read())
+    data[offset] ^= 1 << bit
+    open(dst, "wb").write(bytes(data))
+
+
+def _everything(path):
+    """What a reader returns (raises ArchiveError), and the warnings it gave."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ArchiveWarning)
+        with open_archive(path) as arc:
+            got = {
+                "series": arc.series,
+                "snapshots": arc.snapshots,
+                "initial": arc.initial,
+                "checkpoint": arc.checkpoint(),
+                "meta": (arc.params, arc.settings, arc.versions, arc.created),
+            }
+    return got, [str(w.message) for w in caught]
+
+
+def _same(a, b) -> bool:
+    series = all(np.array_equal(a["series"][k], b["series"][k], equal_nan=True) for k in a["series"])
+    snaps = all(
+        np.array_equal(getattr(a["snapshots"], k), getattr(b["snapshots"], k))
+        for k in ("steps", "indices", "x", "p", "ftle", "A")
+    )
+    return (
+        series
+        and snaps
+        and same_state(a["initial"], b["initial"])
+        and same_state(a["checkpoint"][0], b["checkpoint"][0])
+        and a["checkpoint"][1] == b["checkpoint"][1]
+        and a["meta"] == b["meta"]
+    )
+
+
+def test_verify_exit_status(archived, tmp_path):
+    assert main(["verify", str(archived)]) == 0
+    assert main(["verify", os.path.join(DATA, "archive_v1.h5")]) == 0
+    assert main(["verify", os.path.join(DATA, "sweep_v1.h5")]) == 0
+    proc = cli("verify", str(tmp_path / "missing.h5"))
+    assert proc.returncode == 2 and "no such file" in proc.stderr and "Traceback" not in proc.stderr
+    (tmp_path / "notes.txt").write_text("hello")
+    assert cli("verify", str(tmp_path / "notes.txt")).returncode == 2
+    with h5py.File(tmp_path / "other.h5", "w") as f:
+        f["x"] = 1
+    assert cli("verify", str(tmp_path / "other.h5")).returncode == 2
+    proc = cli("verify", str(archived), "--json")
+    report = json.loads(proc.stdout)
+    assert proc.returncode == 0 and report["ok"] and report["checked"]["datasets"] > 40
+
+
+def test_single_bit_flips_are_detected_or_harmless(archived, tmp_path):
+    """Bits flipped at many offsets: verify finds each flip in stored data; a reader never returns
+    a changed number without an error or a warning naming what it recovered."""
+    want, _ = _everything(archived)
+    size = os.path.getsize(archived)
+    rng = np.random.default_rng(2026)
+    offsets = sorted({int(o) for o in rng.integers(0, size, 160)} | set(range(0, size, size // 40)))
+    census = {"tried": 0, "detected": 0, "harmless": 0, "recovered": 0, "silent": 0}
+    undetected_in_data = []
+    with h5py.File(archived, "r") as f:
+        chunks = []
+        f.visititems(
+            lambda name, obj: (
+                chunks.extend(
+                    (obj.id.get_chunk_info(i).byte_offset, obj.id.get_chunk_info(i).size)
+                    for i in range(obj.id.get_num_chunks())
+                )
+                if isinstance(obj, h5py.Dataset)
+                else None
+            )
+        )
+    for i, offset in enumerate(offsets):
+        damaged = tmp_path / "flip.h5"
+        _flip_bit(archived, damaged, offset, i % 8)
+        census["tried"] += 1
+        problems = []
+        try:
+            problems, _ = verify_archive(damaged)
+        except ArchiveError as exc:
+            problems = [str(exc)]
+        if problems:
+            census["detected"] += 1
+        elif any(start <= offset < start + length for start, length in chunks):
+            undetected_in_data.append(offset)
+        try:
+            got, notes = _everything(damaged)
+        except ArchiveError:
+            continue
+        if _same(got, want):
+            census["harmless" if not problems else "recovered"] += 1 if not notes else 0
+            continue
+        state, step = got["checkpoint"]
+        if notes and step < 1000:  # an older checkpoint, announced: it must be the true one
+            ref = fresh().run(step, chunk_steps=100).state()
+            assert same_state(state, ref), f"offset {offset}: recovered checkpoint differs from the run"
+            census["recovered"] += 1
+            continue
+        census["silent"] += 1
+    print(f"archive flips: {census}")
+    assert census["silent"] == 0
+    assert undetected_in_data == [], f"flips in stored data that verify missed: {undetected_in_data}"
+    assert census["detected"] >= len([o for o in offsets if any(s <= o < s + n for s, n in chunks)])
+
+
+def test_resume_skips_a_damaged_snapshot_and_initial_state(archived, tmp_path):
+    path = tmp_path / "bad.h5"
+    shutil.copy(archived, path)
+    with h5py.File(path, "r") as f:
+        snap = f["snapshots/x"].id.get_chunk_info(1).byte_offset  # the snapshot at step 400
+        initial = f["initial/x"].id.get_chunk_info(0).byte_offset
+    for offset in (snap + 20, initial + 20):
+        _flip_bit(path, tmp_path / "tmp.h5", offset, 3)
+        os.replace(tmp_path / "tmp.h5", path)
+    problems, _ = verify_archive(path)
+    assert any("/snapshots/x" in p for p in problems) and any("/initial/x" in p for p in problems)
+    with pytest.warns(ArchiveWarning, match=r"damaged row\(s\) of /snapshots/x.*initial state is unreadable"):
+        sink, ens = ArchiveSink.resume(path, threads=1)
+    with sink:
+        assert ens.step == 1000
+        run_to(ens, 1200, [sink], sink.chunk_steps)
+    assert same_state(ens.state(), fresh().run(1200).state())
+    with open_archive(path) as arc:
+        assert list(arc.snapshots.steps) == [200, 600, 800, 1000, 1200]  # 400 skipped, the rest kept
+        assert same_state(arc.initial, fresh().state())  # sampled again, bit for bit
+    assert main(["verify", str(path)]) == 0
+
+
+def test_cli_resume_says_what_it_skipped(archived, tmp_path):
+    path = tmp_path / "bad.h5"
+    shutil.copy(archived, path)
+    with h5py.File(path, "r") as f:
+        offset = f["series/A"].id.get_chunk_info(0).byte_offset
+    _flip_bit(path, tmp_path / "tmp.h5", offset + 9, 0)
+    os.replace(tmp_path / "tmp.h5", path)
+    proc = cli("resume", str(path), "--steps", "1100", "--quiet", "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert "warpratchet: warning:" in proc.stderr and "damaged row(s) of /series/A" in proc.stderr
+    assert json.loads(proc.stdout)["steps"] == 1100
+
+
+def test_non_finite_state_is_never_checkpointed(tmp_path):
+    """Tiny b: tangents overflow float64. The sink refuses; the last good checkpoint stays."""
+    path = tmp_path / "tiny.h5"
+    ens = Ensemble.sample(MapParams(3.0, 1e-150, 1e-150), 1000, "strip", 0)
+    sink = ArchiveSink(path, ens, chunk_steps=500, checkpoint_every=1000)
+    with np.errstate(divide="ignore", invalid="ignore"):  # the overflow this test is about
+        with pytest.raises(NonFiniteStateError, match="not finite.*keeps its checkpoint at step"):
+            ens.run(10_000, [sink], chunk_steps=sink.chunk_steps)
+    sink.close()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ArchiveWarning)  # no damaged or non-finite checkpoint to skip
+        with open_archive(path) as arc:
+            state, step = arc.checkpoint()
+    assert step < ens.step and all(np.all(np.isfinite(v)) for v in state.values())
+    assert main(["verify", str(path)]) == 0
+
+
+def test_non_finite_checkpoints_of_release_0_1_are_reported(tmp_path, capsys):
+    """0.1.0 could checkpoint a non-finite state: inspect warns, verify reports, resume skips it."""
+    path = tmp_path / "v1.h5"
+    shutil.copy(os.path.join(DATA, "archive_v1.h5"), path)
+    with h5py.File(path, "r+") as f:
+        slot = ("a", "b")[int(f["checkpoint/current"][0])]
+        dx = f[f"checkpoint/{slot}/dx"][:]
+        dx[:5] = np.inf
+        f[f"checkpoint/{slot}/dx"][:] = dx  # what 0.1.0 wrote for a tiny b (checksums valid)
+    assert main(["verify", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert "damaged: the checkpoint at step 512" in out and "non-finite values (5 dx)" in out
+    assert main(["inspect", str(path)]) == 0
+    err = capsys.readouterr().err
+    assert "warpratchet: warning:" in err and "non-finite values (5 dx)" in err
+    with pytest.warns(ArchiveWarning, match="non-finite"):
+        sink, ens = ArchiveSink.resume(path, threads=1)
+    sink.close()
+    assert ens.step == 256  # the older, finite checkpoint
+
+
+def test_verify_refuses_a_file_a_run_is_writing(tmp_path, capsys):
+    path = tmp_path / "live.h5"
+    with ArchiveSink(path, fresh(), chunk_steps=100):
+        assert main(["verify", str(path)]) == 2
+        assert "in use by another process" in capsys.readouterr().err
+    assert main(["verify", str(path)]) == 0

@@ -1,0 +1,55 @@
+"""Reading an archive safely: HDF5 failures as one line, SWMR refreshes, extents, finite states.
+
+Shared by the reader, the writer, ``resume`` and ``verify`` of :mod:`warpratchet.archive`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+
+import h5py
+import numpy as np
+
+from .._h5verify import chunk_past_end, first_line
+from .names import ArchiveError
+
+__all__ = ["reading", "refresh", "check_extent", "nonfinite", "listed"]
+
+
+@contextlib.contextmanager
+def reading(path: str, what: str) -> Iterator[None]:
+    """Turn any HDF5/h5py failure while reading ``what`` into one clear :class:`ArchiveError`."""
+    try:
+        yield
+    except ArchiveError:
+        raise
+    except (OSError, KeyError, RuntimeError, ValueError, TypeError, IndexError) as exc:
+        raise ArchiveError(
+            f"{path}: cannot read {what} ({first_line(exc)}); the archive is truncated or corrupted"
+        ) from None
+
+
+def refresh(ds: h5py.Dataset) -> h5py.Dataset:
+    with contextlib.suppress(Exception):  # only meaningful (and only allowed) in SWMR mode
+        ds.refresh()
+    return ds
+
+
+def check_extent(path: str, ds: h5py.Dataset, rows: int | None = None) -> None:
+    """ArchiveError if a chunk of ``ds`` holding one of its first ``rows`` rows is past the end of
+    the file (HDF5 would read it as zeros with a valid checksum; see ``_h5verify.chunk_past_end``)."""
+    past = chunk_past_end(path, ds, rows)
+    if past is not None:
+        raise ArchiveError(f"{path}: {past}; the archive is truncated or corrupted")
+
+
+def nonfinite(state: dict[str, np.ndarray]) -> dict[str, int]:
+    """How many non-finite values each field of ``state`` holds (only the fields that have some)."""
+    counts = {name: int(np.size(v) - np.count_nonzero(np.isfinite(v))) for name, v in state.items()}
+    return {name: c for name, c in counts.items() if c}
+
+
+def listed(counts: dict[str, int]) -> str:
+    """``{"dx": 766}`` as ``"766 dx"`` (several joined by commas)."""
+    return ", ".join(f"{count} {field}" for field, count in counts.items())

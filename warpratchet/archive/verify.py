@@ -1,0 +1,90 @@
+"""Checking every byte of an archive that can be checked: ``warpratchet verify`` for run archives.
+
+:func:`verify_archive` reads every dataset whole (so HDF5 verifies the Fletcher-32 checksum of
+every stored chunk, and of the metadata on the way), every attribute, checks that no chunk lies
+past the end of the file, that the counters fit their datasets, that steps grow, and that the
+initial state and every complete checkpoint are finite (release 0.1.0 could checkpoint a
+non-finite state). It reports; it never repairs (``warpratchet resume`` keeps what verifies).
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+
+from .._h5verify import first_line, read_everything
+from .checks import listed, nonfinite
+from .names import COUNTERS, SLOTS, ArchiveError
+from .reader import Archive
+
+__all__ = ["verify_archive"]
+
+
+def _increasing(values: np.ndarray) -> bool:
+    return bool(np.all(np.diff(values) > 0))
+
+
+def verify_archive(path: str | os.PathLike) -> tuple[list[str], dict[str, Any]]:
+    """Every problem of the archive at ``path`` (empty: clean) and what was checked.
+
+    Returns
+    -------
+    (problems, checked)
+        ``problems``: one line each (damaged datasets or metadata, counters beyond their data,
+        steps out of order, non-finite states). ``checked``: format, version, counts of datasets,
+        attributes and bytes read.
+
+    Raises
+    ------
+    ArchiveError
+        The file is not a warpratchet archive (or not one this release reads) at all.
+    """
+    path = os.fspath(path)
+    problems: list[str] = []
+    with Archive(path) as arc:
+        counts = read_everything(arc._file, path, problems)
+        checked = {"format": "warpratchet-archive", "format_version": arc.format_version, **counts}
+        for key in COUNTERS[arc.format_version]:
+            try:
+                value = arc._counter(key)
+            except ArchiveError as exc:
+                problems.append(str(exc).removeprefix(f"{path}: "))
+                continue
+            if key == "target":
+                continue
+            group = "series" if key == "series" else "snapshots"
+            try:
+                size = arc._file[group]["step"].shape[0]
+            except (OSError, KeyError, RuntimeError) as exc:
+                problems.append(f"/{group}/step: damaged metadata ({first_line(exc)})")
+                continue
+            if value > size:
+                problems.append(f"{COUNTERS[arc.format_version][key]} = {value} but /{group} has {size} rows")
+        for what, read in (
+            ("series", lambda: arc.series["step"]),
+            ("snapshots", lambda: arc.snapshots.steps),
+        ):
+            try:
+                steps = read()
+            except (ArchiveError, KeyError):
+                continue  # already reported as damaged data
+            if not _increasing(steps):
+                problems.append(f"/{what}/step is not increasing")
+        states = [("initial", f"the initial state (step {arc.initial_step})")]
+        for slot in SLOTS:
+            try:
+                step = arc._slot_step(slot)
+            except ArchiveError:
+                continue
+            if step >= 0:
+                states.append((f"checkpoint/{slot}", f"the checkpoint at step {step} (slot {slot})"))
+        for group, label in states:
+            try:
+                bad = nonfinite(arc.read_state(group))
+            except (ArchiveError, KeyError):
+                continue  # reported above
+            if bad:
+                problems.append(f"{label} holds non-finite values ({listed(bad)}); resume skips it")
+    return problems, checked

@@ -1,0 +1,105 @@
+"""The records of a sweep file: format name and versions, the columns of a row, their units.
+
+A row is one finished sweep point (:func:`warpratchet.sweep.run_point`); :data:`ROW_DTYPE` is its
+HDF5 compound type, :data:`ROW_DESCRIPTIONS` the units and description of each column. The layout
+of the file is in :mod:`warpratchet.sweep.file`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+__all__ = [
+    "FORMAT",
+    "FORMAT_VERSION",
+    "READABLE_VERSIONS",
+    "ROW_DTYPE",
+    "ROW_FIELDS",
+    "TIMING_FIELDS",
+    "ROW_DESCRIPTIONS",
+    "to_record",
+    "from_record",
+]
+
+FORMAT = "warpratchet-sweep"
+#: Layout version written; :data:`READABLE_VERSIONS` are read (and resumed: rebuilt as this one).
+FORMAT_VERSION = 2
+READABLE_VERSIONS = (1, 2)
+
+#: Columns of a sweep row, in order, with their HDF5 types.
+ROW_DTYPE = np.dtype(
+    [
+        ("index", "<i8"),  # position of the point in the sweep
+        ("K", "<f8"),
+        ("b1", "<f8"),
+        ("b2", "<f8"),
+        ("domain", "S4"),  # "LR", "L", "R" or "none" (Fig. 3)
+        ("A_theory", "<f8"),  # Eq. (Aa)/(Ab) at K = 3; NaN elsewhere
+        ("A", "<f8"),  # mean A_n over chaotic points, per iteration (Eq. An)
+        ("A_stderr", "<f8"),
+        ("lyapunov", "<f8"),  # mean FTLE over chaotic points, per iteration
+        ("lyapunov_std", "<f8"),
+        ("lyapunov_min", "<f8"),
+        ("chaotic_fraction", "<f8"),
+        ("chaotic_points", "<i8"),
+        ("points", "<i8"),  # ensemble size actually run (a grid rounds down to a square)
+        ("steps", "<i8"),
+        ("seed", "<i8"),  # the point's own seed, point_seed(spec.seed, index)
+        ("init", "S8"),
+        ("threshold", "<f8"),  # FTLE threshold used for the chaotic mask
+        ("seconds", "<f8"),  # wall time of the ensemble run on whichever machine ran it
+    ]
+)
+ROW_FIELDS: tuple[str, ...] = tuple(ROW_DTYPE.names)
+#: Row fields that depend on the machine, not on (params, spec, index): leave them out when
+#: comparing rows from different runs or executors.
+TIMING_FIELDS: tuple[str, ...] = ("seconds",)
+
+#: ``(units, long_name)`` of each column, stored as the ``column_units`` and ``column_long_names``
+#: attributes of ``rows`` (a compound dataset has one ``units`` attribute, so it says where to look).
+ROW_DESCRIPTIONS: dict[str, tuple[str, str]] = {
+    "index": ("1", "position of the point in the sweep"),
+    "K": ("1", "kick strength K (Eq. cpem)"),
+    "b1": ("1", "left strip width b1 (Eq. fx)"),
+    "b2": ("1", "right strip width b2 (Eq. fx)"),
+    "domain": ("", "domain of Fig. 3: LR, L, R or none"),
+    "A_theory": ("1/iteration", "A of Eqs. (Aa)/(Ab) at K = 3; NaN elsewhere"),
+    "A": ("1/iteration", "mean A_n of Eq. (An) over chaotic points"),
+    "A_stderr": ("1/iteration", "standard error of A"),
+    "lyapunov": ("1/iteration", "mean FTLE of chaotic points"),
+    "lyapunov_std": ("1/iteration", "standard deviation of the FTLE of chaotic points"),
+    "lyapunov_min": ("1/iteration", "smallest FTLE of a chaotic point"),
+    "chaotic_fraction": ("1", "fraction of points with FTLE above threshold"),
+    "chaotic_points": ("1", "number of points with FTLE above threshold"),
+    "points": ("1", "ensemble size run"),
+    "steps": ("iteration", "iterations run"),
+    "seed": ("1", "the point's own seed, point_seed(spec.seed, index)"),
+    "init": ("", "sampler of the initial ensemble"),
+    "threshold": ("1/iteration", "FTLE threshold used for the chaotic mask"),
+    "seconds": ("s", "wall time of the ensemble run"),
+}
+
+_STRING_FIELDS = tuple(name for name in ROW_FIELDS if ROW_DTYPE[name].kind == "S")
+_INT_FIELDS = tuple(name for name in ROW_FIELDS if ROW_DTYPE[name].kind == "i")
+
+
+def to_record(row: dict[str, Any]) -> np.ndarray:
+    record = np.zeros((), dtype=ROW_DTYPE)
+    for name in ROW_FIELDS:
+        record[name] = row[name].encode("ascii") if name in _STRING_FIELDS else row[name]
+    return record
+
+
+def from_record(record: np.void) -> dict[str, Any]:
+    row: dict[str, Any] = {}
+    for name in ROW_FIELDS:
+        value = record[name]
+        if name in _STRING_FIELDS:
+            row[name] = bytes(value).decode("ascii")
+        elif name in _INT_FIELDS:
+            row[name] = int(value)
+        else:
+            row[name] = float(value)
+    return row
