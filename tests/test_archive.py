@@ -146,8 +146,9 @@ def test_resume_matches_an_uninterrupted_run(tmp_path):
         assert arc.checkpoint_step == 2500 and arc.created != ""
 
 
-def test_interrupted_run_keeps_last_periodic_checkpoint(tmp_path):
-    """An exception mid-run: no end checkpoint (the state may be mid-chunk), rows up to it stay."""
+def test_interrupted_run_is_checkpointed_where_it_stopped(tmp_path):
+    """Ctrl-C between chunks (Ensemble.run never stops inside one): the state is exact, so the
+    sink checkpoints it at the step reached; rows up to it stay, and the resume is bitwise."""
 
     class Boom(Observer):
         def after_chunk(self, ensemble, seconds):
@@ -160,10 +161,10 @@ def test_interrupted_run_keeps_last_periodic_checkpoint(tmp_path):
         with pytest.raises(KeyboardInterrupt):
             ens.run(1000, [sink, Boom()], chunk_steps=100)
     with open_archive(path) as arc:
-        assert arc.checkpoint_step == 600 and list(arc.series["step"]) == list(range(100, 701, 100))
+        assert arc.checkpoint_step == 700 and list(arc.series["step"]) == list(range(100, 701, 100))
     sink, ens = ArchiveSink.resume(path)
     with sink:
-        assert ens.step == 600 and sink.checkpoint_step == 600
+        assert ens.step == 700 and sink.checkpoint_step == 700
         run_to(ens, 1000, [sink], sink.chunk_steps)
     ref = fresh().run(1000)
     assert same_state(ens.state(), ref.state())

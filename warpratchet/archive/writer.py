@@ -240,6 +240,7 @@ class ArchiveSink(Observer):
         self._snapshots = Rows(f["snapshots"], ("step", *SNAPSHOT_FIELDS), f[counters["snapshots"]], snaps)
         self._target_counter = f[counters["target"]]
         self._target = None
+        self._row_step = None
         self._lock_fd = None
         self._failed = False
         self._current = int(f["checkpoint"]["current"][0])
@@ -281,6 +282,7 @@ class ArchiveSink(Observer):
         if self._file is None or not self._file.id.valid:
             raise ValueError(f"{self.path}: the archive sink is closed")
         self._target = int(target_step)
+        self._row_step = None  # the step of the last row this run wrote
         with self._writing():
             set_counter(self._target_counter, self._target)
             self._file.flush()
@@ -323,17 +325,20 @@ class ArchiveSink(Observer):
                 self._snapshots.commit()
                 self._last_snapshot = step
             f.flush()
+        self._row_step = step
         if step // self.checkpoint_every > self.checkpoint_step // self.checkpoint_every:
             self.checkpoint()
 
     def end(self, ensemble: Ensemble) -> None:
-        # Only a run that reached its target is known to be between chunks: an interrupted
-        # chunk may have advanced the arrays without the step counter. A sink whose write
-        # failed writes nothing more.
+        # The state is checkpointed where this run's last row stands: at the target, or where
+        # Ctrl-C stopped the run (Ensemble.run stops between chunks, so step and arrays agree).
+        # An ensemble left undefined by a failed launch, or a sink whose write failed, writes
+        # nothing more.
         if (
             not self._failed
             and self._target is not None
-            and ensemble.step == self._target
+            and ensemble.undefined is None
+            and ensemble.step == self._row_step
             and ensemble.step != self.checkpoint_step
         ):
             self.checkpoint()

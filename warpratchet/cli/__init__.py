@@ -17,6 +17,7 @@ with its examples in :data:`EXAMPLES`.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
 from collections.abc import Sequence
 
@@ -79,6 +80,7 @@ EXAMPLES = {
     ],
     "resume": ["warpratchet resume run.h5 --steps 2000000"],
     "inspect": ["warpratchet inspect run.h5", "warpratchet inspect run.h5 --json"],
+    "verify": ["warpratchet verify run.h5", "warpratchet verify fig7.h5 --json"],
     "sweep": [
         "warpratchet sweep --path maximal --K 3 --b2 0.005:0.165:33 --out fig7.h5",
         "warpratchet sweep --grid b1=0.001:0.5:50,b2=0.001:0.5:50 --domain LR --out grid.h5",
@@ -112,7 +114,9 @@ def build_parser() -> Parser:
         p = sub.choices[name]
         # Each subcommand's help opens with its module's summary and ends with examples.
         if p.description is None:
-            p.description = module.__doc__.split("\n\n")[0].replace("\n", " ")
+            summary = module.__doc__.split("\n\n")[0].replace("\n", " ")
+            # The docstring's "``warpratchet run``: ..." heading reads as plain text in a terminal.
+            p.description = re.sub(r"^``[^`]*``:\s*", "", summary).replace("``", "")
         if name in EXAMPLES:
             p.epilog = _epilog(name)
             p.formatter_class = argparse.RawDescriptionHelpFormatter
