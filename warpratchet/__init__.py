@@ -25,13 +25,14 @@ except PackageNotFoundError:  # pragma: no cover - running from a source tree
     __version__ = "0+unknown"
 
 #: Public names imported on first use: name -> module.
-_LAZY = {"Ensemble": ".ensemble", "Observer": ".runloop", "open_archive": ".archive"}
+_LAZY = {"Ensemble": ".ensemble", "Observer": ".runloop", "History": ".history", "open_archive": ".archive"}
 
 __all__ = [
     "MapParams",
     "RunSpec",
     "Ensemble",
     "Observer",
+    "History",
     "Summary",
     "UnreliableWarning",
     "theory",
