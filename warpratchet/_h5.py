@@ -2,7 +2,8 @@
 
 * :data:`LIBVER`: HDF5 1.10 object formats (readable by HDF5 1.10 tools, SWMR-capable, every
   piece of metadata checksummed); :func:`compact_links` keeps a group's links in its
-  checksummed header.
+  checksummed header; :func:`create_h5` creates a file whose in-place rewrites a SIGKILL
+  cannot tear (paged file space, :data:`PAGE_SIZE`).
 * :func:`sync_h5`: flush and fsync; :func:`abandon_h5`: close a file whose write failed without
   touching it again.
 * :func:`open_h5`: read-only, in SWMR-read mode when the superblock says a writer has the file
@@ -24,6 +25,8 @@ from h5py import h5f, h5p
 
 __all__ = [
     "LIBVER",
+    "PAGE_SIZE",
+    "create_h5",
     "sync_h5",
     "abandon_h5",
     "SWMR_READ_ATTEMPTS",
@@ -40,6 +43,31 @@ __all__ = [
 #: headers v2, chunk indices).
 LIBVER = ("v110", "v110")
 
+#: File-space page of the files an SWMR writer appends to (HDF5 "paged aggregation"), bytes.
+#: An SWMR writer rewrites data in place: the chunk of rows being appended to, the counters,
+#: and the metadata (object headers, chunk indices). Linux copies a write(2) into the page cache
+#: one page at a time and lets a SIGKILL end it between two pages, so a write straddling a page
+#: boundary can be torn: a chunk's new rows land, its Fletcher-32 checksum (in the next page)
+#: does not, and every row of the chunk fails to read (the CI failure of test_archive_kill).
+#: With paged file space every object smaller than a page lies inside one aligned page, so its
+#: rewrite is one page copy that a kill cannot split; 4096 bytes is the smallest page of the
+#: systems we run on (a larger page holds whole 4096-byte pages). Objects larger than a page
+#: are page-aligned but span pages: a writer must not rewrite one holding valid data in place.
+PAGE_SIZE = 4096
+
+
+def create_h5(path: str | os.PathLike) -> h5py.File:
+    """Create (truncate) ``path`` for an SWMR writer: :data:`LIBVER` formats, paged file space.
+
+    Paged aggregation (HDF5 >= 1.10.1 reads it; the 1.10 tools print it) packs objects smaller
+    than :data:`PAGE_SIZE` into pages they never straddle, so a SIGKILL leaves each of them as
+    it was before or after its last rewrite, never half of each. Free space is not persisted
+    (an SWMR writer never frees any). Where the libhdf5 cannot be called directly (not Linux),
+    :func:`abandon_h5` could not close a paged file, and the file space is HDF5's default.
+    """
+    paged = {"fs_strategy": "page", "fs_page_size": PAGE_SIZE, "fs_persist": False}
+    return h5py.File(path, "w", libver=LIBVER, **(paged if _file_info_getter() is not None else {}))
+
 
 def sync_h5(f: h5py.File) -> None:
     """Flush an open HDF5 file and fsync it: everything written so far is on disk."""
@@ -52,18 +80,26 @@ def abandon_h5(f: h5py.File) -> None:
 
     After a failed write (a full disk), HDF5 keeps the unwritten metadata dirty and retries it
     when the file is closed, which fails again; at interpreter exit the library then closes
-    the file once more and crashes (exit 139, issue 13.3). Pointing HDF5's descriptor at
-    ``/dev/null`` first lets the close succeed without touching the file: it keeps what the last
-    successful flush wrote (for an SWMR writer, a consistent file still marked open, exactly
-    what a killed writer leaves, which readers and ``resume`` handle).
+    the file once more and crashes (exit 139, issue 13.3). Pointing HDF5's descriptor at a
+    scratch file in memory first (``memfd``; ``/dev/null`` where there is none) lets the close
+    succeed without touching the file: it keeps what the last successful flush wrote (for an
+    SWMR writer, a consistent file still marked open, exactly what a killed writer leaves,
+    which readers and ``resume`` handle). The scratch file must take the close's writes and the
+    ``ftruncate`` to the allocated size that a paged file (:func:`create_h5`) needs; its reads
+    are zeros, so the one object that close reads, the superblock extension (it rewrites the
+    file-space message there), is loaded into HDF5's cache beforehand (``H5Fget_info2``).
     """
     with contextlib.suppress(Exception):
         if f.id.valid:
-            null = os.open(os.devnull, os.O_RDWR)
+            file_info = _file_info_getter()
+            if file_info is not None:
+                file_info(f.id.id, ctypes.create_string_buffer(1024))  # >= sizeof(H5F_info2_t)
+            memfd = getattr(os, "memfd_create", None)
+            scratch = memfd("abandoned-hdf5") if memfd is not None else os.open(os.devnull, os.O_RDWR)
             try:
-                os.dup2(null, f.id.get_vfd_handle())
+                os.dup2(scratch, f.id.get_vfd_handle())
             finally:
-                os.close(null)
+                os.close(scratch)
             f.close()
 
 
@@ -102,6 +138,11 @@ def _hdf5_call(name: str, argtypes: list) -> Any:
         func.argtypes = argtypes
         func.restype = ctypes.c_int
     return func
+
+
+def _file_info_getter():
+    """``H5Fget_info2`` (h5py does not wrap it), or None."""
+    return _hdf5_call("H5Fget_info2", [ctypes.c_int64, ctypes.c_void_p])
 
 
 def _read_attempts_setter():

@@ -60,6 +60,9 @@ ARCHIVE_SETTINGS = ("chunk_steps", "checkpoint_every", "snapshot_every", "snapsh
 #: Initial-state fill values: a field equal to its fill everywhere is not written (costs no space).
 FILL = {"x": 0.0, "q": 0.0, "winding": 0, "p0": 0.0, "dx": 1.0, "dp": 0.0, "log_stretch": 0.0}
 #: Rows allocated at a time in ``/series`` and ``/snapshots`` (trimmed to the valid rows at close).
+#: It is also the chunk of the 1-D row datasets, rewritten in place at every append: 256 rows of
+#: 8 bytes and the 4-byte checksum fit one file page (``warpratchet._h5.PAGE_SIZE``), so a kill
+#: cannot tear the rewrite; a chunk over a page would span two and could be torn again.
 ROW_CHUNK = 256
 STATE_CHUNK = 1 << 17  # 1 MiB of float64 per chunk
 

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from .._files import open_h5
-from .._h5verify import first_line
+from .._h5verify import first_line, read_rows
 from ..ensemble import STATE_FIELDS, Ensemble
 from ..params import MapParams
 from ..spec import SAMPLERS, RunSpec, attr_value
@@ -187,7 +187,7 @@ class Archive:
                 if ds.shape[0] < n:
                     raise ArchiveError(f"{self.path}: /series/{name} has {ds.shape[0]} rows, {n} are valid")
                 check_extent(self.path, ds, n)
-                out[name] = ds[:n]
+                out[name] = read_rows(ds, n)
         return out
 
     @property
@@ -202,7 +202,7 @@ class Archive:
                 raise ArchiveError(f"{self.path}: /snapshots/step has {steps.shape[0]} rows, {n} are valid")
             check_extent(self.path, g["indices"])
             check_extent(self.path, steps, n)
-            fields = {"steps": steps[:n], "indices": indices}
+            fields = {"steps": read_rows(steps, n), "indices": indices}
             for name in SNAPSHOT_FIELDS:
                 ds = _refresh(g[name])
                 check_extent(self.path, ds, n)
@@ -210,7 +210,7 @@ class Archive:
                     raise ArchiveError(
                         f"{self.path}: /snapshots/{name} has shape {ds.shape}, expected ({n}, M)"
                     )
-                fields[name] = ds[:n].reshape(n, indices.size)
+                fields[name] = read_rows(ds, n).reshape(n, indices.size)
         return Snapshots(**fields)
 
     def _slot_step(self, name: str) -> int:

@@ -24,6 +24,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from .._h5verify import read_rows
 from ..ensemble import STATE_FIELDS, Ensemble
 from ..spec import SAMPLERS
 from .checks import reading
@@ -104,7 +105,7 @@ def _readable_rows(
         ds = arc._file[group][name]
         try:
             with reading(arc.path, f"/{group}/{name}"):
-                out[name] = ds[:n]
+                out[name] = read_rows(ds, n)
             continue
         except ArchiveError:
             pass

@@ -5,7 +5,9 @@ story): the layout is created up front and the file switches to SWMR so that oth
 it while it grows; rows are flushed *before* the ``/progress`` counter that makes them valid;
 the state is checkpointed into the slot *not* holding the newest checkpoint (its ``step`` -1,
 the data fsynced, then ``step`` and ``current``); every chunk and every piece of metadata is
-checksummed (Fletcher-32, HDF5 1.10 formats); a non-finite state is never checkpointed
+checksummed (Fletcher-32, HDF5 1.10 formats); the file space is paged
+(:func:`warpratchet._h5.create_h5`), so that a kill never tears the in-place rewrite of a row
+chunk, a counter or HDF5's metadata across two pages; a non-finite state is never checkpointed
 (:class:`NonFiniteStateError`); free space is checked before each allocating write, and a
 write the system refuses abandons the file as its last successful flush left it (resumable,
 like a killed run's); a new or rebuilt file is published atomically (:mod:`warpratchet._files`).
@@ -30,7 +32,6 @@ import h5py
 import numpy as np
 
 from .._files import (
-    LIBVER,
     abandon_h5,
     check_new_path,
     claim,
@@ -41,6 +42,7 @@ from .._files import (
     temporary_beside,
     try_lock,
 )
+from .._h5 import create_h5
 from ..ensemble import STATE_FIELDS, Ensemble, Observer
 from ..errors import check_count, check_optional, check_real
 from ..observables import acceleration, lyapunov, summarize
@@ -208,7 +210,7 @@ class ArchiveSink(Observer):
             if keep_mode:
                 with contextlib.suppress(OSError):
                     shutil.copymode(path, tmp)  # a rebuilt archive keeps the user's permissions
-            f = h5py.File(tmp, "w", libver=LIBVER)
+            f = create_h5(tmp)  # paged: a kill never tears a row chunk or a counter
             try:
                 layout.create(f, **contents)
                 if fill is not None:
