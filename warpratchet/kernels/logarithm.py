@@ -8,8 +8,8 @@ so they use this one, written three times operation by operation: the CPU body's
 NumPy (:func:`warpratchet.reference.fdlog`). The three are bitwise equal by construction
 (``tests/test_logarithm.py`` checks it on a wide sample and the special values).
 
-Algorithm: fdlibm's ``__ieee754_log`` (Sun Microsystems 1993, ``e_log.c``; also FreeBSD's and
-musl's before 2018), with its coefficients, in one branch-free form:
+Algorithm: fdlibm's ``__ieee754_log`` (Sun Microsystems 1993, ``e_log.c``, as in FreeBSD's msun),
+with its coefficients, in one branch-free form:
 
 1. reduction: ``x = 2^k (1 + f)`` with ``1 + f`` in ``[T/2, T)``, ``T = 1 + 0x6a09c/2^20``
    (just below ``sqrt 2``); subnormal ``x`` are first scaled by ``2^54``. This step is exact, so
@@ -22,10 +22,11 @@ musl's before 2018), with its coefficients, in one branch-free form:
 3. ``log x = k ln2_hi - ((hfsq - (s (hfsq + R) + k ln2_lo)) - f)``, ``hfsq = f^2/2``, with
    ``ln2 = ln2_hi + ln2_lo`` (``k ln2_hi`` exact for ``|k| < 2000``).
 
-fdlibm also has two shortcuts, for ``|f| < 2^-20`` and for ``f`` near 0 (``f - s (f - R)``),
-that save operations in scalar code; they are branches, so this version always takes step 3,
-fdlibm's more accurate form (for ``k = 0`` it is fdlibm's ``f - (hfsq - s (hfsq + R))`` bit for
-bit). Measured against the exact logarithm (``numpy.longdouble``) over 6 * 10^6 arguments
+fdlibm branches to save operations in scalar code: a shortcut for ``|f| < 2^-20``, and the
+cheaper ``f - s (f - R)`` in place of step 3 except where ``1 + f`` is near the ends of its
+interval. This version always takes step 3, fdlibm's more accurate form (for ``k = 0`` it is
+fdlibm's ``f - (hfsq - s (hfsq + R))`` bit for bit), so that vector lanes need no branches.
+Measured against the exact logarithm (``numpy.longdouble``) over 6 * 10^6 arguments
 (log-uniform in ``[1e-300, 1e300]``, uniform in ``[0.5, 2]`` and in ``1 +- 1e-5``): at most
 0.83 ulp (glibc's ``log``: 0.52), within fdlibm's stated bound of 1 ulp; it differs from glibc's
 ``log`` by one ulp for 1.3e-4 of the wide sample, 7.6% of ``[0.5, 2]``.
