@@ -14,10 +14,11 @@ import math
 import numpy as np
 
 from .kernels import RENORM_CHECK_EVERY, RENORM_THRESHOLD
+from .kernels.indicators import INDICATOR_FIELDS
 from .kernels.logarithm import LG1, LG2, LG3, LG4, LG5, LG6, LG7, LN2_HI, LN2_LO, REDUCE_ABOVE
 from .params import MapParams
 
-__all__ = ["advance", "advance_indicators", "advance_renormalising_every_step", "fdlog"]
+__all__ = ["advance", "advance_indicators", "advance_renormalising_every_step", "fdlog", "INDICATOR_FIELDS"]
 
 
 def _step(p: MapParams, x, q, w, dx, dp):
@@ -116,10 +117,6 @@ def fdlog(x: np.ndarray) -> np.ndarray:
         result = k * LN2_HI - ((hfsq - (s * (hfsq + r) + k * LN2_LO)) - f)
     special = np.where(x == 0.0, -np.inf, np.where(x == np.inf, np.inf, np.nan))
     return np.where((x > 0.0) & (x < np.inf), result, special)
-
-
-#: The accumulators of ``advance_map_indicators``, in its argument order.
-INDICATOR_FIELDS = ("fli", "megno_lsum", "megno_ysum")
 
 
 def advance_indicators(

@@ -29,7 +29,7 @@ from .advance import Variant, advance_kernel
 from .logarithm import FDLOG_VECTOR, fdlog
 from .step import INTERLEAVE, VECTOR_TYPES, Lanes, LaneVector, load_lane_vector, store_lane_vector
 
-__all__ = ["advance_map_indicators", "INDICATORS"]
+__all__ = ["advance_map_indicators", "INDICATORS", "INDICATOR_FIELDS"]
 
 
 @wp.struct
@@ -37,6 +37,10 @@ class _Arrays:
     fli: wp.array(dtype=wp.float64)
     megno_lsum: wp.array(dtype=wp.float64)
     megno_ysum: wp.array(dtype=wp.float64)
+
+
+#: The per-point accumulators, in the kernel's argument order: ``fli, megno_lsum, megno_ysum``.
+INDICATOR_FIELDS = tuple(_Arrays.vars)
 
 
 @wp.struct
