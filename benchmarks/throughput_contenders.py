@@ -302,7 +302,7 @@ def warp_indicator_contenders(
         return advance
 
     IndicatorEnsemble(params, np.zeros(64), np.zeros(64), threads=1, device=device).run(16)  # compile
-    build = f"{device}: IndicatorEnsemble.run, advance_map plus MEGNO and FLI (a log per point every 8 steps)"
+    build = f"{device}: IndicatorEnsemble.run, advance_map plus MEGNO and FLI (fdlog per point every 8 steps)"
     label = _label("warpratchet + indicators", device)
     rows = [Contender("warpratchet_indicators", label, t, make(t), device=device) for t in threads]
     return rows, build

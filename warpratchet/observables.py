@@ -25,6 +25,7 @@ __all__ = [
     "reliability",
     "Summary",
     "summarize",
+    "SUMMARY_CHUNK",
 ]
 
 #: Fewest chaotic points for which A is reported as an estimate. The standard error is itself
@@ -178,6 +179,33 @@ def mean_stderr(values: np.ndarray) -> tuple[float, float]:
     return float(values.mean()), float(values.std(ddof=1) / math.sqrt(values.size))
 
 
+#: Points that :func:`summarize` reduces at a time: its temporaries stay a few tens of MB (about
+#: ten float64 arrays of this length) whatever the ensemble's size.
+SUMMARY_CHUNK = 1 << 20
+
+
+class _Sums:
+    """Partial reductions of one quantity over chunks: NumPy's pairwise sum within each chunk,
+    then NumPy's sum of the chunk sums (one chunk: exactly NumPy's sum of the whole array)."""
+
+    def __init__(self) -> None:
+        self.parts: list[np.float64] = []
+
+    def add(self, values: np.ndarray) -> None:
+        self.parts.append(np.add.reduce(values))
+
+    def total(self) -> np.float64:
+        if len(self.parts) == 1:
+            return self.parts[0]
+        return np.add.reduce(np.array(self.parts, dtype=np.float64))
+
+
+def _per_point(state: dict[str, np.ndarray], step: int, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
+    """FTLE and ``A_n`` of points ``lo:hi`` (views of ``state``, no copies of it)."""
+    part = {name: state[name][lo:hi] for name in ("winding", "q", "p0", "dx", "dp", "log_stretch")}
+    return lyapunov(part, step), acceleration(part, step)
+
+
 def summarize(state: dict[str, np.ndarray], step: int, threshold: float | None = None) -> Summary:
     """Mean ``A_n`` over chaotic points with its standard error, FTLE statistics, chaotic fraction.
 
@@ -193,24 +221,63 @@ def summarize(state: dict[str, np.ndarray], step: int, threshold: float | None =
     ``sum_i |A_i - A| / (N_chaotic - N_ambiguous)``. :func:`reliability` compares it with the
     standard error and sets ``reliable`` and ``reason``; no warning is issued here (sinks call
     this after every chunk; :meth:`Ensemble.summary` warns).
+
+    Memory: ``state`` is only read (views of a live ensemble will do), in chunks of
+    :data:`SUMMARY_CHUNK` points, in two passes (means, then deviations from them), so no
+    temporary is larger than a chunk. Rounding: each sum is NumPy's pairwise sum within a chunk,
+    then NumPy's sum of the chunk sums, and means and standard deviations are formed from them
+    as ``numpy.mean`` and ``numpy.std`` do; up to :data:`SUMMARY_CHUNK` points that is one chunk,
+    and the results are bitwise those of NumPy's reductions over the whole arrays. Larger
+    ensembles add the chunk sums in a different order than NumPy's pairwise sum of the whole
+    array would: the same error bound (``O(log N)`` roundings), different last bits.
     """
     if threshold is None:
         threshold = default_lyapunov_threshold(step)
-    ftle = lyapunov(state, step)
-    if not np.all(np.isfinite(ftle)):
-        bad = int(np.count_nonzero(~np.isfinite(ftle)))
+    n = len(state["log_stretch"])
+    bounds = [(lo, min(n, lo + SUMMARY_CHUNK)) for lo in range(0, max(n, 1), SUMMARY_CHUNK)]
+    # One chunk: keep its per-point values for the second pass instead of computing them again.
+    kept = {}
+    sum_a, sum_ftle = _Sums(), _Sums()
+    chaotic_points = n_ambiguous = bad = 0
+    ftle_min = math.inf
+    for lo, hi in bounds:
+        ftle, acc = _per_point(state, step, lo, hi)
+        bad += int(np.count_nonzero(~np.isfinite(ftle)))
+        mask = ftle > threshold
+        chaotic_ftle = ftle[mask]
+        sum_a.add(acc[mask])
+        sum_ftle.add(chaotic_ftle)
+        chaotic_points += chaotic_ftle.size
+        if chaotic_ftle.size:
+            ftle_min = min(ftle_min, float(chaotic_ftle.min()))
+        n_ambiguous += int(np.count_nonzero(_ambiguous(ftle, threshold)))
+        if len(bounds) == 1:
+            kept[lo] = ftle, acc
+    if bad:
         raise FloatingPointError(f"{bad} tangent vectors overflowed; b1 or b2 is too small for float64")
-    mask = ftle > threshold
-    acc = acceleration(state, step)
-    a_mean, a_err = mean_stderr(acc[mask])
-    chaotic_ftle = ftle[mask]
-    chaotic_points = int(np.count_nonzero(mask))
-    ambiguous = (ftle > threshold / AMBIGUITY_FACTOR) & (ftle < threshold * AMBIGUITY_FACTOR)
-    n_ambiguous = int(np.count_nonzero(ambiguous))
+    # Means as numpy.mean forms them (sum / count), then the second pass: squared deviations
+    # (numpy.std, ddof 1) and the ambiguous points' deviations from A.
+    a_mean = float(sum_a.total() / chaotic_points) if chaotic_points else math.nan
+    ftle_mean = float(sum_ftle.total() / chaotic_points) if chaotic_points else math.nan
+    squares_a, squares_ftle, deviations = _Sums(), _Sums(), _Sums()
+    if chaotic_points > 1 or n_ambiguous:
+        for lo, hi in bounds:
+            ftle, acc = kept.get(lo) or _per_point(state, step, lo, hi)
+            mask = ftle > threshold
+            d_a = acc[mask] - a_mean
+            d_ftle = ftle[mask] - ftle_mean
+            squares_a.add(d_a * d_a)
+            squares_ftle.add(d_ftle * d_ftle)
+            deviations.add(np.abs(acc[_ambiguous(ftle, threshold)] - a_mean))
+    if chaotic_points > 1:
+        a_err = float(np.sqrt(squares_a.total() / (chaotic_points - 1)) / math.sqrt(chaotic_points))
+        ftle_std = float(np.sqrt(squares_ftle.total() / (chaotic_points - 1)))
+    else:
+        a_err = ftle_std = math.nan
     if n_ambiguous == 0:
         bound = 0.0
     elif chaotic_points > n_ambiguous:
-        bound = float(np.abs(acc[ambiguous] - a_mean).sum()) / (chaotic_points - n_ambiguous)
+        bound = float(deviations.total()) / (chaotic_points - n_ambiguous)
     else:
         bound = math.inf
     reliable, reason = reliability(chaotic_points, a_err, bound)
@@ -218,13 +285,18 @@ def summarize(state: dict[str, np.ndarray], step: int, threshold: float | None =
         step=int(step),
         A=a_mean,
         A_stderr=a_err,
-        lyapunov=float(chaotic_ftle.mean()) if chaotic_ftle.size else math.nan,
-        lyapunov_std=float(chaotic_ftle.std(ddof=1)) if chaotic_ftle.size > 1 else math.nan,
-        lyapunov_min=float(chaotic_ftle.min()) if chaotic_ftle.size else math.nan,
-        chaotic_fraction=float(mask.mean()),
+        lyapunov=ftle_mean,
+        lyapunov_std=ftle_std,
+        lyapunov_min=ftle_min if chaotic_points else math.nan,
+        chaotic_fraction=float(np.float64(chaotic_points) / n) if n else math.nan,
         chaotic_points=chaotic_points,
         threshold=float(threshold),
         classification_bound=bound,
         reliable=reliable,
         reason=reason,
     )
+
+
+def _ambiguous(ftle: np.ndarray, threshold: float) -> np.ndarray:
+    """Points whose FTLE lies within :data:`AMBIGUITY_FACTOR` of the threshold, either side."""
+    return (ftle > threshold / AMBIGUITY_FACTOR) & (ftle < threshold * AMBIGUITY_FACTOR)

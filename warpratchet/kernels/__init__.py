@@ -10,6 +10,7 @@ the ensemble layer shards points over one Python thread per core.
 * :mod:`.advance`: the step loop, written once, and kernel variants built on it (hooks after each
   step and after each renormalisation check; a plain run pays nothing for them);
 * :mod:`.map`, :mod:`.indicators`: ``advance_map`` and ``advance_map_indicators`` (MEGNO, FLI);
+* :mod:`.logarithm`: ``fdlog``, the indicators' logarithm, the same bits on every body;
 * :mod:`.runtime`: Warp start-up and the compiler options.
 
 Chosen options, and the measurement that chose them: throughput per CPU-second of one thread
@@ -39,10 +40,47 @@ step loop is then 143 instructions for 32 point-steps, 104 of them on ``zmm`` re
 ``vrndscalepd`` and no scalar arithmetic (before: 171 instructions for 8 point-steps, 49 of them
 scalar ``sd``); ``benchmarks/instruction_mix.py`` prints it.
 
-``advance_map_indicators`` runs at ~0.64 of ``advance_map`` (0.52 of the C program): at every
-renormalisation check it takes the C library's ``log`` of every lane, one call per point every
-8 steps, ~3.4 ns against ~6.2 ns for the 8 steps themselves (measured as above). A vectorised
-``log`` would be faster but would change MEGNO and the FLI in the last bits.
+``advance_map_indicators`` takes a logarithm of every point at every check (every 8 steps); the
+C library's ``log``, lane by lane, took ~3.4 ns of it against ~6.2 ns for the 8 steps. It now uses
+:func:`.logarithm.fdlog`, the project's own (fdlibm's algorithm; the same bits on the CPU body, the
+portable body and in NumPy), on whole lane vectors. Measured per CPU-second of one thread as above
+(medians of 4 interleaved runs of both kernels; stack accesses in the step loop in brackets):
+
+=====================================================================  ==============
+the indicators' logarithm                                              of advance_map
+=====================================================================  ==============
+before: the C library's ``log``, lane by lane                          0.64-0.69
+``fdlog``, all 32 lanes at once (36)                                   0.78
+**``fdlog``, 8 lanes at a time in a rolled loop** (21)                 **0.81-0.83**
+the same, out of line (``noinline``)                                    0.71-0.73
+the same, subnormal and special arguments on a branch                  0.82 (no gain)
+=====================================================================  ==============
+
+The renormalisation's ``log`` (once per ~660 steps for a chaotic point) stays the C library's,
+lane by lane, for the lanes that need it: ``fdlog`` there made ``advance_map`` slower (1,090-1,190
+against 1,220-1,235 M point-steps per CPU-second: a check that renormalises one lane would take
+all 32 logarithms), and it keeps the log-stretch bitwise that of archives written before
+(``tests/test_formats.py``). On CUDA that ``log`` is CUDA's (the log-stretch agrees to ~1e-14),
+while ``fdlog`` gives the CPU's bits there too.
+
+What ``fdlog`` changed: it and the C library's ``log`` differ by one ulp for ~1e-4 of arguments
+log-uniform in ``[1e-300, 1e300]`` and ~7% in ``[0.5, 2]``, and the indicators' running sums
+absorb most of that. MEGNO and FLI against the C library's ``log`` (``reference.advance_indicators``
+with ``math.log`` for ``fdlog``), 20,000 torus points:
+
+=========================  ======  ==========================  =========================
+map                        steps   FLI: points differing       MEGNO: points differing
+=========================  ======  ==========================  =========================
+K 3, b1 0.1, b2 0.01       1,000   1 (1 ulp)                   3 (1 ulp)
+K 3, b1 0.1, b2 0.01       16,000  0                           0
+K 3, b1 0.3, b2 0.03       1,000   2 (1 ulp)                   2 (<= 2 ulp)
+K 3, b1 0.3, b2 0.03       16,000  0                           0
+K 2.99, b1 0.25, b2 0.07   4,000   9 (1 ulp)                   5,377 (<= 6e-16 absolute)
+=========================  ======  ==========================  =========================
+
+The last row's MEGNO differences sit on regular orbits whose MEGNO is ~0.01 (a mean of terms of
+size ~1 that nearly cancel): up to 166 ulp of that small value, 6e-16 in absolute terms, against
+the chaos threshold 4. The island census (``tests/test_sumrule.py``) is unchanged.
 """
 
 from .advance import MAX_LAUNCH_STEPS, AdvanceKernel, Variant, advance_kernel, launch_dim

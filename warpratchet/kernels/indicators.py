@@ -3,7 +3,7 @@
 The orbit, tangent and log-stretch are bitwise those of ``advance_map`` (the same step loop).
 At every global step ``8 j`` that is a multiple of ``RENORM_CHECK_EVERY``, after the
 renormalisation check, with ``L_j = ln|v_8j|`` (log-stretch included; ``L_0 = 0`` since
-``|v_0| = 1``):
+``|v_0| = 1``), computed as ``log_stretch + 0.5 fdlog(dx^2 + dp^2)``:
 
 * ``fli = max(fli, L_j)``: the fast Lyapunov indicator of ``M^8`` (Froeschle et al.);
 * MEGNO of ``M^8`` (Cincotta & Simo 2000), ``Y(j) = (2/j) sum_{i<=j} i (L_i - L_{i-1})``,
@@ -14,15 +14,22 @@ renormalisation check, with ``L_j = ln|v_8j|`` (log-stretch included; ``L_0 = 0`
 Sampling every 8 steps makes these the indicators of the map ``M^8``, which has the same chaotic
 and regular orbits as ``M`` and costs one logarithm per 8 steps instead of one per step.
 Checkpoints sit at global step numbers, so chunking does not change the result; the
-accumulators must start at zero at global step 0.
+accumulators must start at zero at global step 0. ``reference.advance_indicators`` is the NumPy
+twin, bit for bit.
+
+``fdlog`` is the project's own logarithm (:mod:`.logarithm`), the same bits on the CPU body's
+lane vectors, the portable body (CUDA) and in NumPy; it costs the CPU body ~0.2 of
+``advance_map``'s time where the C library's ``log``, lane by lane, cost ~0.5 (see the package
+docstring for the measurements and for how the values moved when it replaced that ``log``).
 """
 
 import warp as wp
 
 from .advance import Variant, advance_kernel
-from .step import INTERLEAVE, LOG_LANES, VECTOR_TYPES, Lanes, LaneVector, load_lane_vector, store_lane_vector
+from .logarithm import FDLOG_VECTOR, fdlog
+from .step import INTERLEAVE, VECTOR_TYPES, Lanes, LaneVector, load_lane_vector, store_lane_vector
 
-__all__ = ["advance_map_indicators", "INDICATORS"]
+__all__ = ["advance_map_indicators", "INDICATORS", "INDICATOR_FIELDS"]
 
 
 @wp.struct
@@ -30,6 +37,10 @@ class _Arrays:
     fli: wp.array(dtype=wp.float64)
     megno_lsum: wp.array(dtype=wp.float64)
     megno_ysum: wp.array(dtype=wp.float64)
+
+
+#: The per-point accumulators, in the kernel's argument order: ``fli, megno_lsum, megno_ysum``.
+INDICATOR_FIELDS = tuple(_Arrays.vars)
 
 
 @wp.struct
@@ -68,17 +79,17 @@ def _after_check(acc: wp.ref[_Accumulators], s: wp.ref[Lanes], check: wp.int64):
     for k in range(wp.static(INTERLEAVE)):
         dx = s.dx[k]
         dp = s.dp[k]
-        big_l = s.log_stretch[k] + half * wp.log(dx * dx + dp * dp)
+        big_l = s.log_stretch[k] + half * fdlog(dx * dx + dp * dp)
         acc.fli[k] = wp.max(acc.fli[k], big_l)
         acc.megno_ysum[k] = acc.megno_ysum[k] + two * big_l - two * acc.megno_lsum[k] / j
         acc.megno_lsum[k] = acc.megno_lsum[k] + big_l
 
 
-# The same operations on whole lane vectors, for the CPU body; log goes lane by lane (libm).
+# The same operations on whole lane vectors, for the CPU body.
 _AFTER_CHECK_CPU = (
     VECTOR_TYPES
-    + LOG_LANES
-    + f"""
+    + FDLOG_VECTOR
+    + """
 v_t dx, dp, log_stretch, fli, megno_lsum, megno_ysum;
 __builtin_memcpy(&dx, &s.dx, sizeof(v_t));
 __builtin_memcpy(&dp, &s.dp, sizeof(v_t));
@@ -90,12 +101,8 @@ const double j = (double)check;
 const v_t dx2 = dx * dx;
 const v_t dp2 = dp * dp;
 const v_t norm2 = dx2 + dp2;
-double norm2_lanes[{INTERLEAVE}], log_norm2[{INTERLEAVE}];
-__builtin_memcpy(norm2_lanes, &norm2, sizeof(v_t));
-log_lanes::run(norm2_lanes, nullptr, log_norm2);
-v_t log_norm2_v;
-__builtin_memcpy(&log_norm2_v, log_norm2, sizeof(v_t));
-const v_t half_log = 0.5 * log_norm2_v;
+const v_t log_norm2 = fdlog::run(norm2);
+const v_t half_log = 0.5 * log_norm2;
 const v_t big_l = log_stretch + half_log;
 /* wp.max on the CPU: a >= b ? a : (b == b ? b : a) */
 fli = (fli >= big_l) ? fli : ((big_l == big_l) ? big_l : fli);

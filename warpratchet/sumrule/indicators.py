@@ -36,7 +36,7 @@ __all__ = [
 #: oscillations of short runs.
 MEGNO_THRESHOLD = 4.0
 
-_INDICATOR_FIELDS = ("fli", "megno_lsum", "megno_ysum")
+_INDICATOR_FIELDS = kernels.indicators.INDICATOR_FIELDS
 
 
 class IndicatorEnsemble(Ensemble):

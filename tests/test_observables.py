@@ -1,0 +1,82 @@
+"""``observables.summarize`` in chunks: NumPy's whole-array reductions bit for bit up to one chunk,
+and within the rounding bound of pairwise summation beyond it."""
+
+import math
+
+import numpy as np
+import pytest
+
+from warpratchet import observables
+from warpratchet.ensemble import Ensemble
+from warpratchet.observables import AMBIGUITY_FACTOR, acceleration, lyapunov, mean_stderr, summarize
+from warpratchet.params import MapParams
+
+EPS = np.finfo(np.float64).eps
+
+
+def _whole_array_summary(state: dict, step: int, threshold: float) -> dict:
+    """The summary from NumPy's reductions over the whole arrays (summarize before chunking)."""
+    ftle, acc = lyapunov(state, step), acceleration(state, step)
+    mask = ftle > threshold
+    a, a_err = mean_stderr(acc[mask])
+    ambiguous = (ftle > threshold / AMBIGUITY_FACTOR) & (ftle < threshold * AMBIGUITY_FACTOR)
+    chaotic, n_ambiguous = int(mask.sum()), int(ambiguous.sum())
+    deviations = float(np.abs(acc[ambiguous] - a).sum())
+    return {
+        "A": a,
+        "A_stderr": a_err,
+        "lyapunov": float(ftle[mask].mean()),
+        "lyapunov_std": float(ftle[mask].std(ddof=1)),
+        "lyapunov_min": float(ftle[mask].min()),
+        "chaotic_fraction": float(mask.mean()),
+        "chaotic_points": chaotic,
+        "classification_bound": deviations / (chaotic - n_ambiguous),
+    }
+
+
+def _state(points: int, steps: int, seed: int) -> dict:
+    # Mixed phase space (islands and sea) and a short run, so that the band of ambiguous points
+    # is populated and the classification bound is finite and nonzero.
+    ens = Ensemble.sample(MapParams(3.0, 0.1, 0.01), points, "torus", seed=seed, threads=2).run(steps)
+    return {name: ens.array(name).copy() for name in ens.state()}
+
+
+@pytest.mark.parametrize(("points", "steps"), [(777, 100), (40_000, 300)])
+def test_up_to_one_chunk_the_summary_is_numpys_whole_array_reduction_bit_for_bit(points, steps):
+    state = _state(points, steps, seed=points)
+    threshold = 0.05
+    got = summarize(state, steps, threshold).as_dict()
+    for name, value in _whole_array_summary(state, steps, threshold).items():
+        assert np.float64(got[name]).tobytes() == np.float64(value).tobytes(), name
+
+
+def test_in_many_chunks_the_summary_is_one_chunks_within_the_pairwise_rounding_bound(monkeypatch):
+    """Counts, minimum and fraction are exact; sums within 2 gamma sum|x| (Higham's bound for a
+    pairwise sum of n terms, gamma = (ceil(log2 n) + 2) eps, for each of the two orders), plus a
+    few final roundings (a division, a square root) of at most eps each on either side."""
+    points, steps = 40_000, 300
+    state = _state(points, steps, seed=4)
+    threshold = 0.05
+    one = summarize(state, steps, threshold)
+    monkeypatch.setattr(observables, "SUMMARY_CHUNK", 999)  # 41 chunks, the last one short
+    many = summarize(state, steps, threshold)
+    for name in ("chaotic_points", "lyapunov_min", "chaotic_fraction", "threshold", "step"):
+        assert getattr(many, name) == getattr(one, name), name
+    ftle, acc = lyapunov(state, steps), acceleration(state, steps)
+    mask = ftle > threshold
+    n = int(mask.sum())
+    gamma = (math.ceil(math.log2(n)) + 2) * EPS
+    final = 4 * EPS
+    assert abs(many.A - one.A) <= 2 * gamma * np.abs(acc[mask]).sum() / n + final * abs(one.A)
+    moved_ftle = 2 * gamma * np.abs(ftle[mask]).sum() / n + final * one.lyapunov
+    assert abs(many.lyapunov - one.lyapunov) <= moved_ftle
+    for name in ("A_stderr", "lyapunov_std"):  # sqrt halves the relative error of the sum of squares
+        assert abs(getattr(many, name) - getattr(one, name)) <= (gamma + final) * getattr(one, name), name
+    # the bound sums |A_i - A| over the ambiguous points: its terms move with A, and it is a sum
+    assert 0 < one.classification_bound < math.inf
+    ambiguous = (ftle > threshold / AMBIGUITY_FACTOR) & (ftle < threshold * AMBIGUITY_FACTOR)
+    moved_a = 2 * gamma * np.abs(acc[mask]).sum() / n + final * abs(one.A)
+    deviations = np.abs(acc[ambiguous] - one.A)
+    tolerance = (ambiguous.sum() * moved_a + 2 * gamma * deviations.sum()) / (n - ambiguous.sum())
+    tolerance += final * one.classification_bound
+    assert abs(many.classification_bound - one.classification_bound) <= tolerance
