@@ -33,8 +33,16 @@ import pytest
 from support import Capture
 
 from warpratchet import Ensemble, MapParams
-from warpratchet._h5 import PAGE_SIZE, open_h5
-from warpratchet.archive import SERIES_FIELDS, SNAPSHOT_FIELDS, Archive, ArchiveError, ArchiveSink, run_to
+from warpratchet._h5 import LIBVER, PAGE_SIZE, open_h5
+from warpratchet.archive import (
+    SERIES_FIELDS,
+    SNAPSHOT_FIELDS,
+    Archive,
+    ArchiveError,
+    ArchiveSink,
+    run_to,
+    writer,
+)
 from warpratchet.archive.layout import ROW_CHUNK
 from warpratchet.ensemble import STATE_FIELDS
 
@@ -208,14 +216,22 @@ def _chunk_offsets(path) -> dict[str, tuple[int, int, np.dtype]]:
     return out
 
 
-def test_a_torn_row_chunk_of_a_killed_writer_reads_and_resumes(tmp_path):
+@pytest.mark.parametrize("space", ["unpaged", "paged"])
+def test_a_torn_row_chunk_of_a_killed_writer_reads_and_resumes(tmp_path, monkeypatch, space):
     """What a SIGKILL inside a row append used to leave: the chunk's next row written, its checksum
-    (past a page boundary) not. Committed rows read and resume bit for bit; a damaged one does not read."""
+    (past a page boundary) not. Committed rows read and resume bit for bit; a damaged one does not
+    read. ``unpaged``: a file as archives were written before paged file space (format 2 too)."""
     ref = _archived(tmp_path / "ref.h5", 100)
     with Archive(tmp_path / "ref.h5") as arc:
         want, want_snaps = arc.series, arc.snapshots
     path = tmp_path / "run.h5"
+    if space == "unpaged":
+        monkeypatch.setattr(writer, "create_h5", lambda p: h5py.File(p, "w", libver=LIBVER))
     _archived(tmp_path / "live.h5", 50, live_copy=path)  # 5 rows, 2 snapshots, checkpoint at 50
+    monkeypatch.undo()  # the resume below writes as today
+    with open_h5(path) as f:
+        paged = f.id.get_create_plist().get_file_space_strategy()[0] == h5py.h5f.FSPACE_STRATEGY_PAGE
+    assert paged == (space == "paged")
     offsets = _chunk_offsets(path)
     with open(path, "r+b") as fh:  # the next row lands in each chunk; the checksums stay old
         for name, (offset, rows, dtype) in offsets.items():
