@@ -21,12 +21,7 @@
 #include <math.h>
 #include <stdint.h>
 
-#ifndef RENORM_THRESHOLD
-#error "compile with -DRENORM_THRESHOLD=<warpratchet.kernels.RENORM_THRESHOLD>"
-#endif
-#ifndef RENORM_CHECK_EVERY
-#error "compile with -DRENORM_CHECK_EVERY=<warpratchet.kernels.RENORM_CHECK_EVERY>"
-#endif
+#include "renorm.h"
 
 void advance_map(int64_t n, int64_t step0, int64_t steps, double K, double b1, double right, double l1,
                  double l2, double c, double *x, double *q, int64_t *winding, double *dx, double *dp,

@@ -33,12 +33,7 @@
 #ifndef NV
 #error "compile with -DNV=<vectors per block>"
 #endif
-#ifndef RENORM_THRESHOLD
-#error "compile with -DRENORM_THRESHOLD=<warpratchet.kernels.RENORM_THRESHOLD>"
-#endif
-#ifndef RENORM_CHECK_EVERY
-#error "compile with -DRENORM_CHECK_EVERY=<warpratchet.kernels.RENORM_CHECK_EVERY>"
-#endif
+#include "renorm.h"
 
 #define BLOCK (8 * NV)
 
