@@ -29,6 +29,7 @@ from warpratchet.archive import (
     schedule,
 )
 from warpratchet.cli import main
+from warpratchet.history import History
 
 PARAMS = MapParams(3.0, 0.1, 0.01)
 POINTS = 300
@@ -44,12 +45,14 @@ def fresh() -> Ensemble:
     return Ensemble.sample(PARAMS, POINTS, "strip", SEED)
 
 
-def record(path, steps, *, run_steps=None, **kw):
-    """An archived run of ``steps`` steps; returns the ensemble and the captured states."""
+def record(path, steps, *, run_steps=None, history=False, **kw):
+    """An archived run of ``steps`` steps (with a /history if ``history``); returns the ensemble and
+    the captured states."""
     ens = fresh()
     cap = Capture()
-    with ArchiveSink(path, ens, **kw) as sink:
-        ens.run(steps, [cap, sink], chunk_steps=sink.chunk_steps)
+    kept = History(kw.get("threshold")) if history else None
+    with ArchiveSink(path, ens, history=kept, **kw) as sink:
+        ens.run(steps, [cap, sink] + ([kept] if kept else []), chunk_steps=sink.chunk_steps)
     return ens, cap.states
 
 
@@ -59,9 +62,10 @@ def same_series(a: dict, b: dict) -> bool:
 
 @pytest.fixture(scope="module")
 def archived(tmp_path_factory):
-    """A finished archive with snapshots and several checkpoints, plus the states of its run."""
+    """A finished archive with snapshots, several checkpoints and a history (as ``warpratchet run``
+    writes), plus the states of its run."""
     path = tmp_path_factory.mktemp("arc") / "run.h5"
-    ens, states = record(path, 1000, **SCHEDULE)
+    ens, states = record(path, 1000, history=True, **SCHEDULE)
     return path, ens, states
 
 
@@ -283,7 +287,7 @@ def test_docs_match_the_file(archived, tmp_path):
     assert documented - written <= optional, "documented but not written"
     assert written - documented == set(), "written but not documented"
     ens = Ensemble(PARAMS, np.full(4, 0.2), np.full(4, 0.3))  # no seed, an explicit threshold
-    ArchiveSink(tmp_path / "user.h5", ens, threshold=0.5, chunk_steps=10).close()
+    ArchiveSink(tmp_path / "user.h5", ens, threshold=0.5, chunk_steps=10, history=History(0.5)).close()
     other = _written_names(tmp_path / "user.h5")
     assert documented - other == {"/settings@seed"} and written - other == {"/settings@seed"}
     text = DOC.read_text()

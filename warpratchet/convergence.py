@@ -70,12 +70,15 @@ __all__ = [
     "diffusion_exponent",
     "RobustStderr",
     "robust_stderr",
+    "Assessment",
+    "assess",
 ]
 
 #: ``|z|`` above which ``A_n - A_{n/2}`` counts as drift (two-sided Gaussian tail 0.27%).
 DRIFT_Z_MAX = 3.0
-#: Possible :attr:`Drift.verdict` values.
-VERDICTS = ("converged", "drifting", "too short")
+#: Possible :attr:`Drift.verdict` values; ``"undefined"``: no A or no error at n or n/2 (no
+#: chaotic points, or a single one).
+VERDICTS = ("converged", "drifting", "too short", "undefined")
 
 
 def _as_history(steps, values, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -207,6 +210,8 @@ def drift(
     factor = math.sqrt(max(1.0, 2.0 ** (2.0 - mu) - 1.0)) if math.isfinite(mu) else 1.0
     delta = float(a[-1]) - half
     err = base * factor
+    if not (math.isfinite(delta) and err >= 0):  # NaN A or error: nothing to judge
+        return Drift(int(n), float(a[-1]), half, delta, err, math.nan, mu, "undefined", rule)
     z = delta / err if err > 0 else (math.inf if delta else 0.0)
     verdict = "drifting" if abs(z) > z_max else "converged"
     return Drift(int(n), float(a[-1]), half, delta, err, z, mu, verdict, rule)
@@ -326,4 +331,75 @@ def robust_stderr(
         block_steps=tuple(lengths),
         variances=tuple(variances),
         points=int(n_points),
+    )
+
+
+# -- the verdict of a run --------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Assessment:
+    """Whether a run's ``A`` has converged: what ``run`` reports and sweep rows keep (per iteration).
+
+    ``A_stderr_robust`` is :attr:`RobustStderr.stderr` (NaN when the block gains are missing,
+    ``missing`` says why), ``drift`` is ``A_n - A_{n/2}``, ``drift_z`` its ratio to its standard error
+    (built on the robust error where there is one), ``verdict`` one of :data:`VERDICTS`.
+    """
+
+    A_stderr_robust: float
+    drift: float
+    drift_z: float
+    verdict: str
+    #: Growth exponent ``mu`` of the block variance (robust fit), NaN without blocks.
+    exponent: float
+    rule: str
+    missing: str = ""
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+def assess(
+    history: Mapping[str, Sequence[float]],
+    gains: np.ndarray | None,
+    steps: int,
+    points: int,
+    *,
+    missing: str = "",
+) -> Assessment:
+    """The verdict of a run from its history rows and block gains.
+
+    Parameters
+    ----------
+    history : mapping
+        Rows with keys ``step``, ``A``, ``A_stderr`` and, optionally, ``var_dp_chaotic``; the last
+        row is the run's end ``n = steps``.
+    gains : ndarray, shape (B, M), or None
+        Gains of ``M`` chaotic orbits over ``B`` equal blocks of ``[0, n]`` (:func:`robust_stderr`),
+        None if they were not recorded (``missing`` says why).
+    steps : int
+        ``n``.
+    points : int
+        Chaotic points in the mean ``A`` (the robust error is for their mean).
+
+    Notes
+    -----
+    The drift's standard error is built on the robust error when there is one, else on the plain
+    ``A_stderr`` of the last row (module docstring). Fewer than 2 chaotic orbits in the subsample,
+    or none at all, leave the robust error NaN.
+    """
+    robust: RobustStderr | None = None
+    if gains is not None and not missing:
+        g = np.asarray(gains, dtype=np.float64)
+        if g.ndim == 2 and g.shape[1] >= 2 and points >= 1 and steps >= g.shape[0]:
+            robust = robust_stderr(g, int(steps), points=int(points))
+        else:
+            missing = f"only {g.shape[1] if g.ndim == 2 else 0} chaotic orbits in the block subsample"
+    d = drift_from_history(history, stderr=None if robust is None else robust.stderr)
+    return Assessment(
+        A_stderr_robust=math.nan if robust is None else robust.stderr,
+        drift=d.delta,
+        drift_z=d.z,
+        verdict=d.verdict,
+        exponent=math.nan if robust is None else robust.exponent,
+        rule=d.rule,
+        missing=missing,
     )

@@ -401,8 +401,9 @@ class Ensemble:
             Draw a progress bar (``tqdm.auto``: a widget in Jupyter, text elsewhere).
         archive : str or PathLike, optional
             Stream the run into this HDF5 archive (:mod:`warpratchet.archive`) with its own
-            chunking: a new file, or one this ensemble was archived to before and is still at the
-            checkpoint of (then the run is appended). Closed when the run ends.
+            chunking and the run's history (:class:`~warpratchet.history.History`, group
+            ``/history``): a new file, or one this ensemble was archived to before and is still at
+            the checkpoint of (then the run is appended). Closed when the run ends.
 
         Raises
         ------
@@ -417,6 +418,8 @@ class Ensemble:
         sink = None
         if archive is not None:
             sink = archive_sink(self, archive, chunk_steps)
+            if sink.history is not None:
+                observers.append(sink.history)  # its rows end chunks at their steps
             observers.append(sink)
             chunk_steps = sink.chunk_steps
         if progress:

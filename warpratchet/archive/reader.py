@@ -23,11 +23,13 @@ import numpy as np
 from .._files import open_h5
 from .._h5verify import first_line
 from ..ensemble import STATE_FIELDS, Ensemble
+from ..history import History
 from ..params import MapParams
 from ..spec import SAMPLERS, RunSpec, attr_value
 from . import progress
 from .checks import check_extent, listed, nonfinite, reading
 from .checks import refresh as _refresh
+from .history_group import read_history
 from .layout import read_settings
 from .names import (
     COUNTERS,
@@ -335,6 +337,18 @@ class Archive:
         state, step = self.checkpoint()
         return self.restore(state, step, threads, device)
 
+    @property
+    def history(self) -> History | None:
+        """The run's :class:`~warpratchet.history.History` (feature ``history``; None without one).
+
+        Its valid rows and block records, read afresh (a run may still be writing them):
+        ``history.as_dict()`` (rows as lists), ``history.convergence()`` (the verdict at the last
+        row), ``history.block_rows``.
+        """
+        if "history" not in self.features:
+            return None
+        return read_history(self.path, self._file, self.settings)
+
     def latest(self) -> dict[str, float | int] | None:
         """The last series row as a dict (None before the first chunk)."""
         return _last_row(self.series)
@@ -361,15 +375,17 @@ class Archive:
         }
 
     # -- exports ----------------------------------------------------------------------------------
-    def to_pandas(self):
-        """``series`` as a ``pandas.DataFrame`` indexed by ``step`` (needs ``warpratchet[xarray]``)."""
+    def to_pandas(self, group: str = "series"):
+        """``series`` (or the ``history`` rows) as a ``pandas.DataFrame`` indexed by ``step`` (needs
+        ``warpratchet[xarray]``)."""
         from .export import series_frame
 
-        return series_frame(self)
+        return series_frame(self, group)
 
     def to_xarray(self, group: str = "series"):
-        """``series`` (dimension ``step``) or ``snapshots`` (``step``, ``point``) as an
-        ``xarray.Dataset`` with units and long names (needs ``warpratchet[xarray]``)."""
+        """``series`` (dimension ``step``), ``snapshots`` (``step``, ``point``) or ``history``
+        (``step``; block gains on ``block_step``, ``block_point``) as an ``xarray.Dataset`` with
+        units and long names (needs ``warpratchet[xarray]``)."""
         from .export import dataset
 
         return dataset(self, group)

@@ -43,10 +43,13 @@ from .._files import (
 )
 from ..ensemble import STATE_FIELDS, Ensemble, Observer
 from ..errors import check_count, check_optional, check_real
+from ..history import History
 from ..observables import acceleration, lyapunov, summarize
+from ..spec import check_setting
 from . import layout
 from .checks import listed, nonfinite
 from .chunking import schedule, sink_min_chunk_steps
+from .history_group import HistoryWriter
 from .names import (
     COUNTERS,
     FORMAT_VERSION,
@@ -102,8 +105,16 @@ class ArchiveSink(Observer):
         that a series row costs at most ~1% of the kernel time at this machine's measured
         speed (:func:`~warpratchet.archive.chunking.sink_min_chunk_steps`).
     threshold : float, optional
-        FTLE threshold for the chaotic points of the series (default: per step,
-        :func:`~warpratchet.observables.default_lyapunov_threshold`).
+        FTLE threshold for the chaotic points of the series (default: per step, the rule
+        ``threshold_rule``, :func:`~warpratchet.observables.lyapunov_threshold`).
+    threshold_rule : str
+        ``"strict"`` (default, ``10 (1 + ln n)/n``) or ``"positive"`` (``(1 + ln n)/n``).
+    history : History, optional
+        A :class:`~warpratchet.history.History` (same threshold and rule) to keep in the optional
+        group ``/history``: its rows and block gains are written at each chunk end with the series
+        row, and a resume continues it (:attr:`history`). Pass it to ``Ensemble.run`` among the
+        observers too, so that it records at its own steps (``warpratchet run`` and
+        ``Ensemble.run(archive=...)`` do both).
 
     Raises
     ------
@@ -127,6 +138,8 @@ class ArchiveSink(Observer):
         checkpoint_every: int | None = None,
         threshold: float | None = None,
         chunk_steps: int | None = None,
+        threshold_rule: str = "strict",
+        history: History | None = None,
     ) -> None:
         path = os.fspath(path)
         if not path:
@@ -135,6 +148,16 @@ class ArchiveSink(Observer):
             raise ValueError(f"ensemble = {ensemble!r} is not an Ensemble")
         snapshot_points = check_count("snapshot_points", snapshot_points, 1)
         threshold = check_optional(check_real, "threshold", threshold, 0.0)
+        threshold_rule = check_setting("threshold_rule", threshold_rule)
+        if history is not None:
+            if not isinstance(history, History):
+                raise ValueError(f"history = {history!r} is not a History")
+            if (history.threshold, history.rule) != (threshold, threshold_rule):
+                raise ValueError(
+                    f"the history classifies with threshold = {history.threshold!r}, rule = "
+                    f"{history.rule!r}; the archive with threshold = {threshold!r}, rule = {threshold_rule!r}"
+                )
+            history.subsample(ensemble)
         with _as_archive_error():
             exists = check_new_path(path, force=force, hint=" (use force=True / --force)")
         schedule(ensemble.points, chunk_steps, snapshot_every, checkpoint_every)  # bad values: no work
@@ -162,6 +185,7 @@ class ArchiveSink(Observer):
             settings = layout.run_settings(
                 ensemble,
                 threshold=threshold,
+                threshold_rule=threshold_rule,
                 chunk_steps=chunk_steps,
                 checkpoint_every=checkpoint_every,
                 snapshot_every=snapshot_every,
@@ -175,6 +199,7 @@ class ArchiveSink(Observer):
                 "initial": initial,
                 "initial_step": ensemble.step,
                 "indices": indices,
+                "history": history,
             }
             needed = sum(v.nbytes for k, v in initial.items() if np.any(v != layout.FILL[k]))
             self._build(path, contents, ensemble, replace=exists, needed=needed)
@@ -213,7 +238,7 @@ class ArchiveSink(Observer):
                 layout.create(f, **contents)
                 if fill is not None:
                     fill(f)
-                self._start(f, path, ensemble, contents["settings"], contents["indices"], rows, snaps)
+                self._start(f, path, ensemble, contents, rows, snaps)
                 with _as_archive_error():
                     publish(tmp, path, replace=replace)
             except BaseException:
@@ -222,8 +247,9 @@ class ArchiveSink(Observer):
         self._lock_fd = os.open(path, os.O_RDONLY)
         try_lock(self._lock_fd, exclusive=False)
 
-    def _start(self, f, path, ensemble, settings, indices, rows, snaps) -> None:
+    def _start(self, f, path, ensemble, contents, rows, snaps) -> None:
         """Enter SWMR mode and bind the open file to this sink."""
+        settings, indices, history = contents["settings"], contents["indices"], contents.get("history")
         f.swmr_mode = True
         sync_h5(f)  # durable before the file gets its name
         self._file = f
@@ -234,7 +260,15 @@ class ArchiveSink(Observer):
         self.checkpoint_every = int(settings["checkpoint_every"])
         self.snapshot_every = int(settings["snapshot_every"])
         self.threshold = settings["threshold"]
+        self.threshold_rule = settings.get("threshold_rule") or "strict"
         self._indices = indices
+        #: The run's :class:`~warpratchet.history.History` kept in ``/history`` (None without one).
+        self.history = history
+        self._history = (
+            None
+            if history is None
+            else HistoryWriter(f, history, len(history.rows["step"]), len(history.block_rows["block_step"]))
+        )
         counters = COUNTERS[FORMAT_VERSION]
         self._series = Rows(f["series"], SERIES_FIELDS, f[counters["series"]], rows)
         self._snapshots = Rows(f["snapshots"], ("step", *SNAPSHOT_FIELDS), f[counters["snapshots"]], snaps)
@@ -283,6 +317,8 @@ class ArchiveSink(Observer):
             raise ValueError(f"{self.path}: the archive sink is closed")
         self._target = int(target_step)
         self._row_step = None  # the step of the last row this run wrote
+        if self.history is not None:
+            self.history.begin(ensemble, self._target)  # idempotent: also an observer of the run
         with self._writing():
             set_counter(self._target_counter, self._target)
             self._file.flush()
@@ -293,18 +329,22 @@ class ArchiveSink(Observer):
         live = {name: ensemble.array(name) for name in STATE_FIELDS}  # zero-copy on the CPU
         with self._writing():
             try:
-                summary = summarize(live, step, self.threshold).as_dict()
+                summary = summarize(live, step, self.threshold, self.threshold_rule).as_dict()
             except FloatingPointError as exc:
                 raise NonFiniteStateError(
                     f"{self.path}: the state at step {step} is not finite ({exc}); not archived: "
                     f"the archive keeps its checkpoint at step {self.checkpoint_step}"
                 ) from None
+            if self._history is not None:
+                self._record_history(ensemble)
             clocks = {"wall_time": seconds, "unix_time": time.time()}
             snap = (
                 self.snapshot_every
                 and step // self.snapshot_every > self._last_snapshot // self.snapshot_every
             )
             new_bytes = self._series.growth_bytes() + (self._snapshots.growth_bytes() if snap else 0)
+            if self._history is not None:
+                new_bytes += self._history.growth_bytes()
             if new_bytes:
                 ensure_space(self.path, new_bytes, "the next rows")
             self._series.put({name: clocks.get(name, summary.get(name)) for name in SERIES_FIELDS})
@@ -319,8 +359,12 @@ class ArchiveSink(Observer):
                         "A": acceleration(sub, step),
                     }
                 )
+            if self._history is not None:
+                self._history.put()
             f.flush()  # rows on disk before the counters that make them valid
             self._series.commit()
+            if self._history is not None:
+                self._history.commit()
             if snap:
                 self._snapshots.commit()
                 self._last_snapshot = step
@@ -328,6 +372,18 @@ class ArchiveSink(Observer):
         self._row_step = step
         if step // self.checkpoint_every > self.checkpoint_step // self.checkpoint_every:
             self.checkpoint()
+
+    def _record_history(self, ensemble: Ensemble) -> None:
+        """Make sure the history holds its record of this step (``after_chunk`` is idempotent), and
+        that it has not missed earlier steps (it must be an observer of the run, for its stops)."""
+        history = self.history
+        missed = history.overdue(ensemble.step)
+        history.after_chunk(ensemble, 0.0)
+        if missed:
+            raise ValueError(
+                f"the archive's history missed its step {missed[0]}: pass sink.history to Ensemble.run "
+                "among the observers (it ends chunks at its steps)"
+            )
 
     def end(self, ensemble: Ensemble) -> None:
         # The state is checkpointed where this run's last row stands: at the target, or where
@@ -387,6 +443,8 @@ class ArchiveSink(Observer):
                 with storage_errors(self.path, "write"):
                     self._series.trim()
                     self._snapshots.trim()
+                    if self._history is not None:
+                        self._history.trim()
                     f.flush()
                     f.close()
             except BaseException:

@@ -3,7 +3,7 @@
 Where the points are: ``--path`` (the paper's paths, :mod:`warpratchet.sweep.paths`) or
 ``--grid``, with ranges ``START:STOP:COUNT`` that include both ends. What runs at each point:
 the :class:`~warpratchet.spec.SweepSpec` flags (``--points --steps --seed --init
---threshold``), plus ``--threads`` and ``--scheduler`` (where it runs, never what).
+--threshold --threshold-rule``), plus ``--threads`` and ``--scheduler`` (where it runs, never what).
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ def add(sub) -> None:
     )
     spec_flags(
         p,
-        ("points", "steps", "seed", "init", "threshold"),
+        ("points", "steps", "seed", "init", "threshold", "threshold_rule"),
         points={"help": "ensemble size per point (default 10000)"},
         steps={"help": "iterations per point (default 120000)"},
         seed={"help": "root seed; point i uses child i of numpy SeedSequence(seed) (default 0)"},
