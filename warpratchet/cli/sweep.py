@@ -169,7 +169,7 @@ def _print_rows(rows: list[dict], computed: int, out: str | None) -> None:
     """
     print(
         f"{'K':>6} {'b1':>10} {'b2':>10} {'domain':>6} {'A':>11} {'+-':>8} {'A_theory':>11} "
-        f"{'lyapunov':>9} {'chaotic':>7} {'seconds':>8}"
+        f"{'lyapunov':>9} {'chaotic':>7} {'seconds':>8} {'drift z':>7} verdict"
     )
     few = 0
     for r in rows:
@@ -178,7 +178,8 @@ def _print_rows(rows: list[dict], computed: int, out: str | None) -> None:
         print(
             f"{r['K']:>6.4g} {r['b1']:>10.4g} {r['b2']:>10.4g} {r['domain']:>6} {_cell(r['A'], 11, '.5g')} "
             f"{_cell(r['A_stderr'], 8, '.2g')} {_cell(r['A_theory'], 11, '.5g')} "
-            f"{_cell(r['lyapunov'], 9, '.4g')} {r['chaotic_fraction']:>7.4f} {r['seconds']:>8.2f}{mark}"
+            f"{_cell(r['lyapunov'], 9, '.4g')} {r['chaotic_fraction']:>7.4f} {r['seconds']:>8.2f} "
+            f"{_cell(r['drift_z'], 7, '+.2f')} {r['verdict'] or 'n/a'}{mark}"
         )
     source = f", {len(rows) - computed} read from {out}" if out is not None else ""
     print(f"{len(rows)} points: {computed} computed{source}")
