@@ -125,7 +125,7 @@ def test_read_sweep_while_a_sweep_writes(tmp_path):
             if path.exists():
                 rows = read_sweep(path)
                 seen.add(len(rows))
-                assert all(len(row) == len(ROW_FIELDS) == 24 and row["steps"] == 2000 for row in rows)
+                assert all(len(row) == len(ROW_FIELDS) == 25 and row["steps"] == 2000 for row in rows)
                 reads += 1
             time.sleep(0.002)
     finally:

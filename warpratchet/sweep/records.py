@@ -55,6 +55,7 @@ ROW_DTYPE = np.dtype(
         ("drift", "<f8"),  # A_n - A_{n/2}
         ("drift_z", "<f8"),  # the drift in units of its standard error
         ("verdict", "S10"),  # converged, drifting, too short, undefined ("" in older files)
+        ("diffusion_exponent", "<f8"),  # mu of Var(gain over T) ~ T^mu, from the block gains
         ("seconds", "<f8"),  # wall time of the ensemble run on whichever machine ran it
     ]
 )
@@ -68,6 +69,7 @@ ADDED_COLUMNS: dict[str, Any] = {
     "drift": float("nan"),
     "drift_z": float("nan"),
     "verdict": "",
+    "diffusion_exponent": float("nan"),
 }
 #: Row fields that depend on the machine, not on (params, spec, index): leave them out when
 #: comparing rows from different runs or executors.
@@ -99,6 +101,7 @@ ROW_DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "drift": ("1/iteration", "A_n - A_n/2, the drift of A over the second half of the run"),
     "drift_z": ("1", "the drift in units of its standard error"),
     "verdict": ("", "converged, drifting (|drift_z| > 3), too short or undefined"),
+    "diffusion_exponent": ("1", "mu of the block-gain variance ~ T^mu (1 diffusive, 2 ballistic)"),
     "seconds": ("s", "wall time of the ensemble run"),
 }
 

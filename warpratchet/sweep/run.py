@@ -118,6 +118,7 @@ def run_point(
         "drift": verdict.drift,
         "drift_z": verdict.drift_z,
         "verdict": verdict.verdict,
+        "diffusion_exponent": verdict.exponent,
         "seconds": seconds,
     }
     return {name: row[name] for name in ROW_FIELDS}
