@@ -205,9 +205,14 @@ def _convergence(paper_rows: list[CheckedRow], strip_rows: list[CheckedRow]) -> 
     lines += [
         "",
         "A drifting point's A is still moving at n = 120000: |A_n - A_n/2| estimates its bias, at least as "
-        "large when orbits stick for heavy-tailed times (`warpratchet.convergence`). Where A(b2) stays rough "
-        "with the robust errors, the roughness is real structure in b2 (islands and their sticky layers "
-        "coming and going) or the bias of drifting points, not sampling noise.",
+        "large when orbits stick for heavy-tailed times (`warpratchet.convergence`). The two ensembles "
+        "differ "
+        "here for a reason: the torus ensemble's chaotic orbits start uniformly on C, which the "
+        "area-preserving "
+        "map leaves invariant, so A_n has no transient to outgrow; the strip B is not invariant, and orbits "
+        "started in it relax onto the sea's measure through sticky layers whose flights decay slowly. Where "
+        "A(b2) stays rough with the robust errors, the roughness is real structure in b2 (islands and their "
+        "sticky layers coming and going) or the bias of drifting points, not sampling noise.",
         "",
     ]
     return lines

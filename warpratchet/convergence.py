@@ -339,8 +339,9 @@ def robust_stderr(
 class Assessment:
     """Whether a run's ``A`` has converged: what ``run`` reports and sweep rows keep (per iteration).
 
-    ``A_stderr_robust`` is :attr:`RobustStderr.stderr` (NaN when the block gains are missing,
-    ``missing`` says why), ``drift`` is ``A_n - A_{n/2}``, ``drift_z`` its ratio to its standard error
+    ``A_stderr_robust`` is :attr:`RobustStderr.stderr` of the block subsample, never below the
+    plain ``A_stderr`` of all chaotic points (NaN when the block gains are missing, ``missing`` says
+    why), ``drift`` is ``A_n - A_{n/2}``, ``drift_z`` its ratio to its standard error
     (built on the robust error where there is one), ``verdict`` one of :data:`VERDICTS`.
     """
 
@@ -383,8 +384,10 @@ def assess(
     Notes
     -----
     The drift's standard error is built on the robust error when there is one, else on the plain
-    ``A_stderr`` of the last row (module docstring). Fewer than 2 chaotic orbits in the subsample,
-    or none at all, leave the robust error NaN.
+    ``A_stderr`` of the last row (module docstring). The block gains are those of a subsample
+    (:mod:`warpratchet.history`: at most 4096 orbits), which may miss the rare long flights that
+    dominate the plain error of the whole ensemble: the robust error is the larger of the two.
+    Fewer than 2 chaotic orbits in the subsample, or none at all, leave the robust error NaN.
     """
     robust: RobustStderr | None = None
     if gains is not None and not missing:
@@ -393,9 +396,15 @@ def assess(
             robust = robust_stderr(g, int(steps), points=int(points))
         else:
             missing = f"only {g.shape[1] if g.ndim == 2 else 0} chaotic orbits in the block subsample"
-    d = drift_from_history(history, stderr=None if robust is None else robust.stderr)
+    # The blocks are a subsample: the robust error never goes below the plain error of all the
+    # chaotic points (a subsample may miss the rare long flights that dominate it).
+    plain = float(np.asarray(history["A_stderr"], dtype=np.float64)[-1])
+    error = (
+        math.nan if robust is None else max(robust.stderr, plain) if math.isfinite(plain) else robust.stderr
+    )
+    d = drift_from_history(history, stderr=None if robust is None else error)
     return Assessment(
-        A_stderr_robust=math.nan if robust is None else robust.stderr,
+        A_stderr_robust=error,
         drift=d.delta,
         drift_z=d.z,
         verdict=d.verdict,
