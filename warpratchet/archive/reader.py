@@ -371,8 +371,22 @@ class Archive:
             "rows": int(series["step"].size),
             "snapshots": self.snapshot_count,
             "latest": _last_row(series),
+            "history": self._history_info(),
             **progress.estimate(series, self.target_step, self.initial_step),
         }
+
+    def _history_info(self) -> dict[str, Any] | None:
+        """Rows and block records of ``/history`` and the verdict at its last row (None without one)."""
+        history = self.history
+        if history is None:
+            return None
+        info: dict[str, Any] = {
+            "rows": len(history.rows["step"]),
+            "blocks": len(history.block_rows["block_step"]),
+        }
+        if history.rows["step"]:
+            info["convergence"] = history.convergence().as_dict()
+        return info
 
     # -- exports ----------------------------------------------------------------------------------
     def to_pandas(self, group: str = "series"):
