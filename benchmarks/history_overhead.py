@@ -28,13 +28,11 @@ Usage::
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 from typing import Any
 
-from _sink_overhead import compare, emit, log, measure_cases, options, warm_up
+from _sink_overhead import Timed, compare, emit, log, measure_cases, options, warm_up
 
-from warpratchet import Observer
 from warpratchet.history import History
 
 BUDGET = 1.05
@@ -48,29 +46,6 @@ COLUMNS = [
     ("wall x", "wall_ratio", ".3f"), ("cpu x", "cpu_ratio", ".3f"),
     ("history/kernel", "history_share_of_kernel", ".2f%"), ("same", "identical", "yes"),
 ]  # fmt: skip
-
-
-class Timed(Observer):
-    """Forwards to a History (its stops too) and adds up the seconds spent in it and in the kernel."""
-
-    def __init__(self, history: History) -> None:
-        self.history = history
-        self.seconds = 0.0
-        self.kernel = 0.0
-
-    def begin(self, ensemble, target_step):
-        start = time.perf_counter()
-        self.history.begin(ensemble, target_step)
-        self.seconds += time.perf_counter() - start
-
-    def next_stop(self, step):
-        return self.history.next_stop(step)
-
-    def after_chunk(self, ensemble, seconds):
-        self.kernel += seconds
-        start = time.perf_counter()
-        self.history.after_chunk(ensemble, seconds)
-        self.seconds += time.perf_counter() - start
 
 
 def measure(points: int, steps: int, repeat: int, folder: Path) -> dict[str, Any]:

@@ -9,15 +9,13 @@ import json
 import os
 import re
 import shutil
-import subprocess
-import sys
 import warnings
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
-from support import Capture, assert_one_line_error, cli, refused, run_argv, same_state
+from support import Capture, assert_one_line_error, cli, quick_benchmark, refused, run_argv, same_state
 
 from warpratchet import Ensemble, MapParams, Observer, open_archive, summarize
 from warpratchet.archive import (
@@ -501,12 +499,7 @@ def test_cli_refusals(tmp_path, capsys, args, message):
 
 def test_overhead_benchmark_runs_and_archiving_changes_nothing():
     """Smoke test of benchmarks/archive_overhead.py --quick (structure only, no timing assertions)."""
-    script = Path(__file__).resolve().parents[1] / "benchmarks" / "archive_overhead.py"
-    proc = subprocess.run(
-        [sys.executable, str(script), "--quick", "--json"], capture_output=True, text=True, timeout=300
-    )
-    assert proc.returncode == 0, proc.stderr
-    report = json.loads(proc.stdout)
+    report = quick_benchmark("archive_overhead.py")
     assert report["quick"] and report["budget"] == 1.05 and len(report["cases"]) == 2
     for case in report["cases"]:
         assert case["identical"] and case["rows"] >= 1 and case["file_bytes"] > 0

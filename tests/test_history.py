@@ -7,13 +7,10 @@ threshold rules; ``run --json`` carries the history (resumes from archives: test
 
 import json
 import math
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
-from support import run_argv
+from support import quick_benchmark, run_argv
 
 from warpratchet import Ensemble, MapParams, Observer, RunSpec, acceleration, lyapunov, summarize
 from warpratchet.cli import main
@@ -228,12 +225,7 @@ def test_run_json_carries_the_history_and_the_verdict(capsys):
 
 def test_overhead_benchmark_runs_and_the_history_changes_nothing():
     """Smoke test of benchmarks/history_overhead.py --quick (structure only, no timing assertions)."""
-    script = Path(__file__).resolve().parents[1] / "benchmarks" / "history_overhead.py"
-    proc = subprocess.run(
-        [sys.executable, str(script), "--quick", "--json"], capture_output=True, text=True, timeout=300
-    )
-    assert proc.returncode == 0, proc.stderr
-    report = json.loads(proc.stdout)
+    report = quick_benchmark("history_overhead.py")
     assert report["quick"] and report["budget"] == 1.05 and len(report["cases"]) == 2
     for case in report["cases"]:
         assert case["identical"] and case["rows"] == len(history_steps(0, case["steps"]))

@@ -31,19 +31,21 @@ def _dense_along_path(b2: np.ndarray, sigma: np.ndarray, samples: int = 300) -> 
     return fine, np.interp(fine, b2, sigma)
 
 
-def _numeric_points(ax, sigma, a, err, label: str) -> None:
+def _numeric_points(
+    ax, sigma, a, err, label: str, color: str = "black", marker: str = "o", ms: float = 5
+) -> None:
     ax.errorbar(
         sigma,
         a,
         yerr=err,
-        fmt="o",
+        fmt=marker,
         mfc="none",
-        mec="black",
-        ecolor="black",
-        ms=5,
+        mec=color,
+        ecolor=color,
+        ms=ms,
         lw=0.8,
         label=label,
-        zorder=3,
+        zorder=3 if color == "black" else 2,
     )
 
 
@@ -178,18 +180,15 @@ def fig9(ctx: Context) -> None:
     fine, fine_sigma = _dense_along_path(b2, sigma)
     ax.plot(fine_sigma, [closed(v) for v in fine], label="Eq. (Ab) at $K=3$", **SOLID)
     strip_b2, strip_a = _columns(strip_rows, "b2", "A")
-    ax.errorbar(
+    _numeric_points(
+        ax,
         np.interp(strip_b2, b2, sigma),
         strip_a,
-        yerr=_error(strip_rows),
-        fmt="s",
-        mfc="none",
-        mec="gray",
-        ecolor="gray",
+        _error(strip_rows),
+        r"strip B (FTLE $>10(1+\ln n)/n$), at the same $b_2$",
+        color="gray",
+        marker="s",
         ms=4,
-        lw=0.8,
-        label=r"strip B (FTLE $>10(1+\ln n)/n$), at the same $b_2$",
-        zorder=2,
     )
     _numeric_points(
         ax, sigma, a, _error(paper_rows), rf"torus, FTLE $>(1+\ln n)/n$ (the paper's), $K={path.K}$"
