@@ -230,3 +230,20 @@ def test_overhead_benchmark_runs_and_the_history_changes_nothing():
     for case in report["cases"]:
         assert case["identical"] and case["rows"] == len(history_steps(0, case["steps"]))
         assert case["blocks"] == 64 and case["wall_ratio"] > 0 and case["history_share_of_kernel"] > 0
+
+
+def test_an_archive_refuses_a_history_it_cannot_keep(tmp_path):
+    from warpratchet.archive import ArchiveSink
+
+    ens = Ensemble.sample(PARAMS, 100, "strip", seed=1)
+    with pytest.raises(ValueError, match="classifies with threshold = None, rule = 'strict'; the archive"):
+        ArchiveSink(tmp_path / "a.h5", ens, threshold_rule="positive", history=History())
+    used = History()
+    ens.run(100, [used])
+    with pytest.raises(ValueError, match="holds records of an earlier run"):
+        ArchiveSink(tmp_path / "b.h5", ens, history=used)
+    sink = ArchiveSink(tmp_path / "c.h5", ens, history=History())  # not among the run's observers
+    with pytest.raises(ValueError, match="missed its step .*: pass sink.history to Ensemble.run"):
+        ens.run(1000, [sink], chunk_steps=500)
+    sink.close()
+    assert not (tmp_path / "a.h5").exists() and not (tmp_path / "b.h5").exists()

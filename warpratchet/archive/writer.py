@@ -152,6 +152,11 @@ class ArchiveSink(Observer):
         if history is not None:
             if not isinstance(history, History):
                 raise ValueError(f"history = {history!r} is not a History")
+            if history.rows["step"] or history.block_rows["block_step"]:
+                raise ValueError(
+                    "history holds records of an earlier run; a new archive needs a new History "
+                    "(ArchiveSink.resume continues an archived one)"
+                )
             if (history.threshold, history.rule) != (threshold, threshold_rule):
                 raise ValueError(
                     f"the history classifies with threshold = {history.threshold!r}, rule = "
