@@ -33,7 +33,7 @@ during the run: the blocks must be cut from one run at equal times, which no end
 give afterwards; 4096 orbits give every block length 4096 x (blocks) samples, enough for the
 variance-time fit (module :mod:`warpratchet.convergence`), for 4 MB of archive at 64 blocks.
 
-:meth:`History.convergence` turns both into the verdict (:func:`warpratchet.convergence.assess`):
+:meth:`History.convergence` turns both into the verdict (:func:`warpratchet.verdict.assess`):
 the drift of A between n/2 and n in units of its standard error and the robust error.
 
 The steps are global step numbers fixed by the target alone, so a run split into chunks,
@@ -51,11 +51,11 @@ from typing import Any
 
 import numpy as np
 
-from .convergence import Assessment, assess
 from .ensemble import STATE_FIELDS
 from .errors import check_choice, check_count, check_optional, check_real
 from .observables import THRESHOLD_RULES, lyapunov, lyapunov_threshold, summarize
 from .runloop import Observer
+from .verdict import Assessment, assess
 
 __all__ = [
     "HISTORY_FIELDS",
