@@ -22,7 +22,31 @@ from .checks import refresh as _refresh
 from .names import HISTORY_COUNTERS, ArchiveError
 from .rows import Rows
 
-__all__ = ["HistoryWriter", "read_history", "history_counts", "history_settings", "write_history"]
+__all__ = [
+    "HistoryWriter",
+    "check_history",
+    "read_history",
+    "history_counts",
+    "history_settings",
+    "history_info",
+    "write_history",
+]
+
+
+def check_history(history: History, threshold: float | None, rule: str) -> None:
+    """ValueError unless ``history`` can be kept by a new archive classifying with ``threshold``, ``rule``."""
+    if not isinstance(history, History):
+        raise ValueError(f"history = {history!r} is not a History")
+    if (history.threshold, history.rule) != (threshold, rule):
+        raise ValueError(
+            f"the history classifies with threshold = {history.threshold!r}, rule = {history.rule!r}; "
+            f"the archive with threshold = {threshold!r}, rule = {rule!r}"
+        )
+    if history.rows["step"] or history.block_rows["block_step"]:
+        raise ValueError(
+            "history holds records of an earlier run; a new archive needs a new History "
+            "(ArchiveSink.resume continues an archived one)"
+        )
 
 
 class HistoryWriter:
@@ -33,6 +57,17 @@ class HistoryWriter:
         g = f["history"]
         self.rows = Rows(g, HISTORY_FIELDS, f[HISTORY_COUNTERS["rows"]], rows)
         self.blocks = Rows(g, BLOCK_FIELDS, f[HISTORY_COUNTERS["blocks"]], blocks)
+
+    def record(self, ensemble: Any) -> None:
+        """Make sure the history holds its record of this step (``after_chunk`` is idempotent), and
+        that it has not missed earlier steps (it must be an observer of the run, for its stops)."""
+        missed = self.history.overdue(ensemble.step)
+        self.history.after_chunk(ensemble, 0.0)
+        if missed:
+            raise ValueError(
+                f"the archive's history missed its step {missed[0]}: pass sink.history to Ensemble.run "
+                "among the observers (it ends chunks at its steps)"
+            )
 
     def _new(self) -> tuple[int, int]:
         return (
@@ -111,6 +146,19 @@ def read_history(path: str, f: h5py.File, settings: dict[str, Any]) -> History:
     with reading(path, "/history/block_indices"):
         indices = _refresh(g["block_indices"])[:]
     return History.restore(rows, blocks, indices, **history_settings(path, f, settings))
+
+
+def history_info(history: History | None) -> dict[str, Any] | None:
+    """Rows and block records of a history and the verdict at its last row (what ``inspect`` shows)."""
+    if history is None:
+        return None
+    info: dict[str, Any] = {
+        "rows": len(history.rows["step"]),
+        "blocks": len(history.block_rows["block_step"]),
+    }
+    if history.rows["step"]:
+        info["convergence"] = history.convergence().as_dict()
+    return info
 
 
 def write_history(f: h5py.File, history: History) -> None:

@@ -21,60 +21,45 @@ from __future__ import annotations
 import contextlib
 import datetime
 import os
-import shutil
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from typing import Any
 
-import h5py
 import numpy as np
 
 from .._files import (
-    LIBVER,
     abandon_h5,
     check_new_path,
     claim,
     ensure_space,
-    publish,
     storage_errors,
     sync_h5,
-    temporary_beside,
     try_lock,
 )
 from ..ensemble import STATE_FIELDS, Ensemble, Observer
 from ..errors import check_count, check_optional, check_real
 from ..history import History
-from ..observables import acceleration, lyapunov, summarize
+from ..observables import summarize
 from ..spec import check_setting
 from . import layout
+from .building import as_archive_error, build_file
 from .checks import listed, nonfinite
 from .chunking import schedule, sink_min_chunk_steps
-from .history_group import HistoryWriter
+from .history_group import HistoryWriter, check_history
 from .names import (
     COUNTERS,
     FORMAT_VERSION,
     SERIES_FIELDS,
-    SLOTS,
     SNAPSHOT_FIELDS,
     ArchiveError,
     NonFiniteStateError,
 )
 from .reopen import reopen
 from .rows import Rows, set_counter
+from .slots import write_slot
+from .snapshots import snapshot_indices, snapshot_row
 
 __all__ = ["ArchiveSink", "NonFiniteStateError"]
-
-#: Salt of the snapshot subsample's generator, so it differs from the sampler's stream.
-_SNAPSHOT_SALT = 0x5A4E
-
-
-@contextlib.contextmanager
-def _as_archive_error() -> Iterator[None]:
-    """The file-safety refusals of :mod:`warpratchet._files` as :class:`ArchiveError` lines."""
-    try:
-        yield
-    except (FileExistsError, FileNotFoundError, BlockingIOError) as exc:
-        raise ArchiveError(str(exc)) from None
 
 
 class ArchiveSink(Observer):
@@ -150,20 +135,9 @@ class ArchiveSink(Observer):
         threshold = check_optional(check_real, "threshold", threshold, 0.0)
         threshold_rule = check_setting("threshold_rule", threshold_rule)
         if history is not None:
-            if not isinstance(history, History):
-                raise ValueError(f"history = {history!r} is not a History")
-            if history.rows["step"] or history.block_rows["block_step"]:
-                raise ValueError(
-                    "history holds records of an earlier run; a new archive needs a new History "
-                    "(ArchiveSink.resume continues an archived one)"
-                )
-            if (history.threshold, history.rule) != (threshold, threshold_rule):
-                raise ValueError(
-                    f"the history classifies with threshold = {history.threshold!r}, rule = "
-                    f"{history.rule!r}; the archive with threshold = {threshold!r}, rule = {threshold_rule!r}"
-                )
+            check_history(history, threshold, threshold_rule)
             history.subsample(ensemble)
-        with _as_archive_error():
+        with as_archive_error():
             exists = check_new_path(path, force=force, hint=" (use force=True / --force)")
         schedule(ensemble.points, chunk_steps, snapshot_every, checkpoint_every)  # bad values: no work
         if chunk_steps is None:
@@ -181,12 +155,11 @@ class ArchiveSink(Observer):
             raise NonFiniteStateError(
                 f"{path}: the state at step {ensemble.step} is not finite ({listed(bad)} non-finite)"
             )
-        with _as_archive_error():
+        with as_archive_error():
             old_fd = claim(path, exclusive=True) if exists else None
         try:
             m = min(snapshot_points, ensemble.points) if snapshot_every else 0
-            rng = np.random.default_rng([_SNAPSHOT_SALT, ensemble.seed or 0])
-            indices = np.sort(rng.choice(ensemble.points, size=m, replace=False)).astype(np.int64)
+            indices = snapshot_indices(ensemble.points, m, ensemble.seed)
             settings = layout.run_settings(
                 ensemble,
                 threshold=threshold,
@@ -215,40 +188,11 @@ class ArchiveSink(Observer):
         self._last_snapshot = ensemble.step
 
     def _build(
-        self,
-        path: str,
-        contents: dict[str, Any],
-        ensemble: Ensemble,
-        *,
-        replace: bool,
-        keep_mode: bool = False,
-        fill: Callable[[h5py.File], None] | None = None,
-        rows: int = 0,
-        snaps: int = 0,
-        needed: int = 0,
+        self, path: str, contents: dict[str, Any], ensemble: Ensemble, *, rows: int = 0, snaps: int = 0, **how
     ) -> None:
-        """Create the layout under a temporary name, ``fill`` it, bind it, publish it atomically.
-
-        ``needed`` bytes must be free first. A failure (a full disk) leaves no temporary file and
-        the old file, if any, untouched.
-        """
-        with storage_errors(path, "create"):
-            ensure_space(path, needed, "the new archive")
-        with storage_errors(path, "create"), temporary_beside(path) as tmp:
-            if keep_mode:
-                with contextlib.suppress(OSError):
-                    shutil.copymode(path, tmp)  # a rebuilt archive keeps the user's permissions
-            f = h5py.File(tmp, "w", libver=LIBVER)
-            try:
-                layout.create(f, **contents)
-                if fill is not None:
-                    fill(f)
-                self._start(f, path, ensemble, contents, rows, snaps)
-                with _as_archive_error():
-                    publish(tmp, path, replace=replace)
-            except BaseException:
-                abandon_h5(f)  # a plain close would retry a failed write (and crash at exit)
-                raise
+        """Create the file (:func:`.building.build_file`, keywords ``how``), bind it to this sink
+        holding ``rows`` series rows and ``snaps`` snapshots, and take a shared lock on it."""
+        build_file(path, contents, lambda f: self._start(f, path, ensemble, contents, rows, snaps), **how)
         self._lock_fd = os.open(path, os.O_RDONLY)
         try_lock(self._lock_fd, exclusive=False)
 
@@ -341,7 +285,7 @@ class ArchiveSink(Observer):
                     f"the archive keeps its checkpoint at step {self.checkpoint_step}"
                 ) from None
             if self._history is not None:
-                self._record_history(ensemble)
+                self._history.record(ensemble)
             clocks = {"wall_time": seconds, "unix_time": time.time()}
             snap = (
                 self.snapshot_every
@@ -354,16 +298,7 @@ class ArchiveSink(Observer):
                 ensure_space(self.path, new_bytes, "the next rows")
             self._series.put({name: clocks.get(name, summary.get(name)) for name in SERIES_FIELDS})
             if snap:
-                sub = {name: live[name][self._indices] for name in STATE_FIELDS}
-                self._snapshots.put(
-                    {
-                        "step": step,
-                        "x": sub["x"],
-                        "p": sub["q"],  # p mod 1 is exactly q
-                        "ftle": lyapunov(sub, step),
-                        "A": acceleration(sub, step),
-                    }
-                )
+                self._snapshots.put(snapshot_row(live, self._indices, step))
             if self._history is not None:
                 self._history.put()
             f.flush()  # rows on disk before the counters that make them valid
@@ -377,18 +312,6 @@ class ArchiveSink(Observer):
         self._row_step = step
         if step // self.checkpoint_every > self.checkpoint_step // self.checkpoint_every:
             self.checkpoint()
-
-    def _record_history(self, ensemble: Ensemble) -> None:
-        """Make sure the history holds its record of this step (``after_chunk`` is idempotent), and
-        that it has not missed earlier steps (it must be an observer of the run, for its stops)."""
-        history = self.history
-        missed = history.overdue(ensemble.step)
-        history.after_chunk(ensemble, 0.0)
-        if missed:
-            raise ValueError(
-                f"the archive's history missed its step {missed[0]}: pass sink.history to Ensemble.run "
-                "among the observers (it ends chunks at its steps)"
-            )
 
     def end(self, ensemble: Ensemble) -> None:
         # The state is checkpointed where this run's last row stands: at the target, or where
@@ -423,20 +346,9 @@ class ArchiveSink(Observer):
                 "b1 or b2 too small for float64?); not checkpointed: the archive keeps its checkpoint "
                 f"at step {self.checkpoint_step}"
             )
-        f = self._file
         free = 1 - self._current if self._current >= 0 else 0
-        slot = f["checkpoint"][SLOTS[free]]
         with self._writing():
-            if slot["x"].id.get_num_chunks() == 0:  # the slot's first use allocates its space
-                ensure_space(self.path, sum(v.nbytes for v in state.values()), "the checkpoint")
-            set_counter(slot["step"], -1)  # in progress: neither a reader nor a recovery may trust it
-            f.flush()
-            for name in STATE_FIELDS:
-                slot[name].write_direct(state[name])
-            sync_h5(f)  # the data is durable before anything points at it
-            set_counter(slot["step"], ensemble.step)
-            set_counter(f["checkpoint"]["current"], free)
-            sync_h5(f)
+            write_slot(self.path, self._file, free, state, ensemble.step)
         self._current = free
         self.checkpoint_step = ensemble.step
 
