@@ -1,4 +1,4 @@
-"""What archive_overhead.py and recording_overhead.py share: timing a run with and without a sink.
+"""What the overhead benchmarks share (archive, recording, history): a run with and without a sink.
 
 Not a script. Each repetition advances a fresh strip ensemble (Eq. B) at K = 3, b1 = 0.1,
 b2 = 0.01 (seed 1) by ``steps`` iterations twice, first plainly (``Ensemble.run(steps)`` with
@@ -20,11 +20,38 @@ from typing import Any
 
 import numpy as np
 
-from warpratchet import Ensemble, MapParams
+from warpratchet import Ensemble, MapParams, Observer
 from warpratchet.ensemble import STATE_FIELDS
 
 PARAMS = MapParams(K=3.0, b1=0.1, b2=0.01)
 INIT, SEED = "strip", 1
+
+
+class Timed(Observer):
+    """Forwards to an observer (its ``next_stop`` too, if it has one) and adds up the seconds spent
+    in it (``seconds``) and in the kernel between its calls (``kernel``)."""
+
+    def __init__(self, inner: Observer) -> None:
+        self.inner = inner
+        self.seconds = 0.0
+        self.kernel = 0.0
+        if callable(getattr(inner, "next_stop", None)):
+            self.next_stop = inner.next_stop
+
+    def _time(self, method, *args) -> None:
+        start = time.perf_counter()
+        method(*args)
+        self.seconds += time.perf_counter() - start
+
+    def begin(self, ensemble, target_step):
+        self._time(self.inner.begin, ensemble, target_step)
+
+    def after_chunk(self, ensemble, seconds):
+        self.kernel += seconds
+        self._time(self.inner.after_chunk, ensemble, seconds)
+
+    def end(self, ensemble):
+        self._time(self.inner.end, ensemble)
 
 
 def log(message: str) -> None:

@@ -32,9 +32,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from _sink_overhead import compare, emit, log, measure_cases, options, warm_up
+from _sink_overhead import Timed, compare, emit, log, measure_cases, options, warm_up
 
-from warpratchet import Observer
 from warpratchet.archive import ArchiveSink
 
 BUDGET = 1.05
@@ -48,30 +47,6 @@ COLUMNS = [
     ("wall x", "wall_ratio", ".3f"), ("cpu x", "cpu_ratio", ".3f"),
     ("sink/kernel", "sink_share_of_kernel", ".2f%"), ("same", "identical", "yes"),
 ]  # fmt: skip
-
-
-class Timed(Observer):
-    """Forwards to a sink and adds up the seconds spent in it (and the kernel's, per chunk)."""
-
-    def __init__(self, sink: ArchiveSink) -> None:
-        self.sink = sink
-        self.seconds = 0.0
-        self.kernel = 0.0
-
-    def _time(self, method, *args) -> None:
-        start = time.perf_counter()
-        method(*args)
-        self.seconds += time.perf_counter() - start
-
-    def begin(self, ensemble, target_step):
-        self._time(self.sink.begin, ensemble, target_step)
-
-    def after_chunk(self, ensemble, seconds):
-        self.kernel += seconds
-        self._time(self.sink.after_chunk, ensemble, seconds)
-
-    def end(self, ensemble):
-        self._time(self.sink.end, ensemble)
 
 
 def measure(points: int, steps: int, repeat: int, folder: Path) -> dict[str, Any]:

@@ -1,23 +1,25 @@
 """Convergence of A_n along Fig. 9's path: drift between n/2 and n, and the robust standard error.
 
 For each b2 on K = 2.99, b1 = 0.25, 0.005 <= b2 <= 0.14, one ensemble (``--init``: the strip B,
-the package default, or the torus) is run to n steps while recording what a run's history will
-hold (A_n over chaotic points with its standard error and Var(p_n - p_0) over them, at 8
-log-spaced steps per decade and at n) and the momentum gain of every orbit over 64 equal blocks
-of n/64 steps. Printed per point: A with the plain error std/sqrt(N), the robust error of
-``warpratchet.convergence.robust_stderr`` (variance-time batch means) and its exponent mu, the
-drift A_n - A_{n/2} of ``warpratchet.convergence.drift`` in units of the robust error, and the
-verdict. At the end: where A rises from one b2 to the next by more than 4 combined errors, with
-either error (Eq. Ab at K = 3 decreases along the path; rises are islands coming and going, or
-errors that are still too small).
+the package default, or the torus; ``--threshold-rule``: strict or positive) is run to n steps
+with a :class:`warpratchet.history.History` (what every ``warpratchet run`` and sweep point
+records: A_n over chaotic points with its standard error and Var(p_n - p_0) over them at 8
+log-spaced steps per decade and at n, and the momentum gains of 4096 of the orbits over 64
+equal blocks of n/64 steps). Printed per point: A with the plain error std/sqrt(N), the robust
+error of ``warpratchet.convergence.robust_stderr`` (variance-time batch means, never below the
+plain one) and its exponent mu, the drift A_n - A_{n/2} in units of its standard error, and the
+verdict (:meth:`History.convergence`). At the end: where A rises from one b2 to the next by more
+than 4 combined errors, with either error (Eq. Ab at K = 3 decreases along the path; rises are
+islands coming and going, or errors that are still too small).
 
 Seeds: point i uses ``warpratchet.sweep.point_seed(seed, i)`` as a sweep would (``--seed``,
-default 0, the seed of ``python -m viz figures``), so its rows are those of the Fig. 9 sweep.
+default 0, the seed of ``python -m viz figures``), so its rows are those of the Fig. 9 sweep
+(``--init torus --threshold-rule positive``: the ``fig9_paper`` sweep).
 
 Usage::
 
     python scripts/fig9_convergence.py               # 28 points, 10^4 strip points x 1.2e5 steps (~3 min)
-    python scripts/fig9_convergence.py --init torus  # torus points (chaotic: the package's FTLE threshold)
+    python scripts/fig9_convergence.py --init torus --threshold-rule positive   # the paper's ensemble
     python scripts/fig9_convergence.py --quick       # 6 points, 2000 x 2e4 (seconds)
 """
 
@@ -31,47 +33,26 @@ import time
 
 import numpy as np
 
-from warpratchet import Ensemble, MapParams, acceleration, chaotic_mask, lyapunov, summarize
-from warpratchet.convergence import drift, robust_stderr
+from warpratchet import Ensemble, MapParams
+from warpratchet.convergence import diffusion_exponent
+from warpratchet.history import History
 from warpratchet.sweep import point_seed
 
-K, B1, BLOCKS = 2.99, 0.25, 64
+K, B1 = 2.99, 0.25
 
 
-def record(params: MapParams, points: int, steps: int, init: str, seed: int) -> dict:
-    """Run one ensemble; return its history rows and per-orbit block gains (chaotic at n)."""
-    ens = Ensemble.sample(params, points, init, seed)
-    history_steps = {int(round(10 ** (k / 8))) for k in range(16, 8 * int(math.log10(steps)) + 9)}
-    block_steps = {steps * b // BLOCKS for b in range(1, BLOCKS + 1)}
-    marks = sorted(s for s in history_steps | block_steps if 0 < s <= steps)
-    rows = {"step": [], "A": [], "A_stderr": [], "var_dp_chaotic": []}
-    gains = []
-    for mark in marks:
-        ens.run(mark - ens.step)
-        state = ens.state()
-        if mark in block_steps:
-            gains.append(acceleration(state, mark) * mark)  # p_n - p_0 of every orbit
-        if mark in history_steps or mark == steps:
-            s = summarize(state, mark)
-            dp = acceleration(state, mark)[_mask(state, mark)] * mark
-            rows["step"].append(mark)
-            rows["A"].append(s.A)
-            rows["A_stderr"].append(s.A_stderr)
-            rows["var_dp_chaotic"].append(float(dp.var(ddof=1)))
-    cumulative = np.array(gains)  # (BLOCKS, points), gains since step 0 at each block end
-    blocks = np.diff(np.vstack([np.zeros(points), cumulative]), axis=0)
-    return {"history": rows, "blocks": blocks[:, _mask(ens.state(), steps)]}
-
-
-def _mask(state: dict, step: int) -> np.ndarray:
-    """Chaotic points by the package's default FTLE threshold (as in ``summarize``)."""
-    return chaotic_mask(lyapunov(state, step), step)
+def record(params: MapParams, points: int, steps: int, init: str, seed: int, rule: str) -> History:
+    """Run one ensemble with a History (rows and block gains) and return it."""
+    history = History(rule=rule)
+    Ensemble.sample(params, points, init, seed).run(steps, [history])
+    return history
 
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--init", choices=("strip", "torus"), default="strip")
+    ap.add_argument("--threshold-rule", choices=("strict", "positive"), default="strict")
     ap.add_argument("--points", type=int)
     ap.add_argument("--steps", type=int)
     ap.add_argument("--seed", type=int, default=0)
@@ -87,25 +68,26 @@ def main(argv: list[str] | None = None) -> int:
     for i in indices:
         params = MapParams(K, B1, float(b2_values[i]))
         print(f"[{time.perf_counter() - started:6.1f} s] b2 = {params.b2:.4f}", file=sys.stderr, flush=True)
-        rec = record(params, points, steps, args.init, point_seed(args.seed, i))
-        h = rec["history"]
-        rob = robust_stderr(rec["blocks"], steps)
-        d = drift(h["step"], h["A"], h["A_stderr"], h["var_dp_chaotic"], stderr=rob.stderr)
+        history = record(params, points, steps, args.init, point_seed(args.seed, i), args.threshold_rule)
+        h, v = history.rows, history.convergence()
         rows.append(
             {
                 "b2": params.b2,
                 "A": h["A"][-1],
                 "naive": h["A_stderr"][-1],
-                "robust": rob.stderr,
-                "mu": rob.exponent,
-                "mu_history": d.exponent,
-                "delta": d.delta,
-                "z": d.z,
-                "verdict": d.verdict,
+                "robust": v.A_stderr_robust,
+                "mu": v.exponent,
+                "mu_history": diffusion_exponent(h["step"], h["var_dp_chaotic"]),
+                "delta": v.drift,
+                "z": v.drift_z,
+                "verdict": v.verdict,
             }
         )
     p = lambda *a: print(*a, file=out)  # noqa: E731
-    p(f"# Fig. 9 path, {args.init} ensemble: {points} points x n = {steps}, seed {args.seed}\n")
+    p(
+        f"# Fig. 9 path, {args.init} ensemble ({args.threshold_rule} threshold): {points} points x "
+        f"n = {steps}, seed {args.seed}\n"
+    )
     p(
         "| b2 | A | plain se | robust se | robust/plain | mu (blocks) | mu (history) | A_n - A_n/2 | z "
         "| verdict |"
@@ -132,7 +114,15 @@ def main(argv: list[str] | None = None) -> int:
     p(f"\nTotal {time.perf_counter() - started:.0f} s.")
     if args.json:
         json.dump(
-            {"points": points, "steps": steps, "init": args.init, "seed": args.seed, "rows": rows}, sys.stdout
+            {
+                "points": points,
+                "steps": steps,
+                "init": args.init,
+                "threshold_rule": args.threshold_rule,
+                "seed": args.seed,
+                "rows": rows,
+            },
+            sys.stdout,
         )
         print()
     return 0

@@ -30,6 +30,19 @@ def cli(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
     )
 
 
+def quick_benchmark(name: str, timeout: float = 300) -> dict:
+    """``benchmarks/NAME --quick --json`` in a fresh process: it must exit 0; its JSON report."""
+    import json
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / name
+    proc = subprocess.run(
+        [sys.executable, str(script), "--quick", "--json"], capture_output=True, text=True, timeout=timeout
+    )
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
 def assert_one_line_error(proc: subprocess.CompletedProcess) -> None:
     """Bad input: exit 2, one line ``warpratchet: error: ...`` on stderr, no traceback."""
     assert proc.returncode == 2, proc.stderr

@@ -9,15 +9,13 @@ import json
 import os
 import re
 import shutil
-import subprocess
-import sys
 import warnings
 from pathlib import Path
 
 import h5py
 import numpy as np
 import pytest
-from support import Capture, assert_one_line_error, cli, refused, run_argv, same_state
+from support import Capture, assert_one_line_error, cli, quick_benchmark, refused, run_argv, same_state
 
 from warpratchet import Ensemble, MapParams, Observer, open_archive, summarize
 from warpratchet.archive import (
@@ -29,6 +27,7 @@ from warpratchet.archive import (
     schedule,
 )
 from warpratchet.cli import main
+from warpratchet.history import History
 
 PARAMS = MapParams(3.0, 0.1, 0.01)
 POINTS = 300
@@ -44,12 +43,14 @@ def fresh() -> Ensemble:
     return Ensemble.sample(PARAMS, POINTS, "strip", SEED)
 
 
-def record(path, steps, *, run_steps=None, **kw):
-    """An archived run of ``steps`` steps; returns the ensemble and the captured states."""
+def record(path, steps, *, run_steps=None, history=False, **kw):
+    """An archived run of ``steps`` steps (with a /history if ``history``); returns the ensemble and
+    the captured states."""
     ens = fresh()
     cap = Capture()
-    with ArchiveSink(path, ens, **kw) as sink:
-        ens.run(steps, [cap, sink], chunk_steps=sink.chunk_steps)
+    kept = History(kw.get("threshold")) if history else None
+    with ArchiveSink(path, ens, history=kept, **kw) as sink:
+        ens.run(steps, [cap, sink] + ([kept] if kept else []), chunk_steps=sink.chunk_steps)
     return ens, cap.states
 
 
@@ -59,9 +60,10 @@ def same_series(a: dict, b: dict) -> bool:
 
 @pytest.fixture(scope="module")
 def archived(tmp_path_factory):
-    """A finished archive with snapshots and several checkpoints, plus the states of its run."""
+    """A finished archive with snapshots, several checkpoints and a history (as ``warpratchet run``
+    writes), plus the states of its run."""
     path = tmp_path_factory.mktemp("arc") / "run.h5"
-    ens, states = record(path, 1000, **SCHEDULE)
+    ens, states = record(path, 1000, history=True, **SCHEDULE)
     return path, ens, states
 
 
@@ -283,7 +285,7 @@ def test_docs_match_the_file(archived, tmp_path):
     assert documented - written <= optional, "documented but not written"
     assert written - documented == set(), "written but not documented"
     ens = Ensemble(PARAMS, np.full(4, 0.2), np.full(4, 0.3))  # no seed, an explicit threshold
-    ArchiveSink(tmp_path / "user.h5", ens, threshold=0.5, chunk_steps=10).close()
+    ArchiveSink(tmp_path / "user.h5", ens, threshold=0.5, chunk_steps=10, history=History(0.5)).close()
     other = _written_names(tmp_path / "user.h5")
     assert documented - other == {"/settings@seed"} and written - other == {"/settings@seed"}
     text = DOC.read_text()
@@ -497,12 +499,7 @@ def test_cli_refusals(tmp_path, capsys, args, message):
 
 def test_overhead_benchmark_runs_and_archiving_changes_nothing():
     """Smoke test of benchmarks/archive_overhead.py --quick (structure only, no timing assertions)."""
-    script = Path(__file__).resolve().parents[1] / "benchmarks" / "archive_overhead.py"
-    proc = subprocess.run(
-        [sys.executable, str(script), "--quick", "--json"], capture_output=True, text=True, timeout=300
-    )
-    assert proc.returncode == 0, proc.stderr
-    report = json.loads(proc.stdout)
+    report = quick_benchmark("archive_overhead.py")
     assert report["quick"] and report["budget"] == 1.05 and len(report["cases"]) == 2
     for case in report["cases"]:
         assert case["identical"] and case["rows"] >= 1 and case["file_bytes"] > 0

@@ -6,8 +6,9 @@ have landed on a live process. Kills come at random progress points (the test re
 while the CLI writes it, in SWMR mode, and kills once it has grown past a random row count, plus
 a random delay so that the kill falls anywhere inside a chunk or checkpoint) and at random times
 after launch (imports, file creation, the rebuild of ``resume``). After every kill the archive
-must open, keep every row a reader saw before the kill, hold rows, snapshots and a checkpoint
-identical to those of an uninterrupted run, and the final resumed state must equal that run's
+must open, keep every row a reader saw before the kill, hold rows, snapshots, history records
+and a checkpoint identical to those of an uninterrupted run, and the final resumed state and
+history (issue 15: ``/history``, and ``resume --json``'s ``"history"``) must equal that run's
 bit for bit.
 
 The rare failure it once had in CI (a kill inside the rewrite of a row chunk that straddled a page
@@ -40,11 +41,12 @@ from warpratchet.archive import (
     Archive,
     ArchiveError,
     ArchiveSink,
+    building,
     run_to,
-    writer,
 )
 from warpratchet.archive.layout import ROW_CHUNK
 from warpratchet.ensemble import STATE_FIELDS
+from warpratchet.history import BLOCK_FIELDS, HISTORY_FIELDS, History
 
 K, B1, B2 = 3.0, 0.1, 0.01
 POINTS, SEED, STEPS = 2000, 7, 60_000
@@ -59,6 +61,7 @@ def reference(tmp_path_factory):
     path = tmp_path_factory.mktemp("ref") / "ref.h5"
     ens = Ensemble.sample(MapParams(K, B1, B2), POINTS, "strip", SEED)
     cap = Capture(keep=lambda step: step % CHECKPOINT == 0 or step == STEPS)  # the checkpoint steps
+    history = History()  # what warpratchet run keeps
     with ArchiveSink(
         path,
         ens,
@@ -66,11 +69,25 @@ def reference(tmp_path_factory):
         snapshot_points=SNAPSHOT_POINTS,
         checkpoint_every=CHECKPOINT,
         chunk_steps=CHUNK,
+        history=history,
     ) as sink:
-        ens.run(STEPS, [cap, sink], chunk_steps=sink.chunk_steps)
+        ens.run(STEPS, [cap, history, sink], chunk_steps=sink.chunk_steps)
     with Archive(path) as arc:
-        series, snaps = arc.series, arc.snapshots
-    return ens, cap.states, series, snaps
+        series, snaps, kept = arc.series, arc.snapshots, arc.history
+    assert all(np.array_equal(kept.rows[k], history.rows[k], equal_nan=True) for k in HISTORY_FIELDS)
+    return ens, cap.states, series, snaps, history
+
+
+def _same_history(history: History, ref: History, whole: bool = False) -> None:
+    """``history`` holds a prefix of the reference's rows and block records (all of them if ``whole``)."""
+    rows, blocks = len(history.rows["step"]), len(history.block_rows["block_step"])
+    if whole:
+        assert (rows, blocks) == (len(ref.rows["step"]), len(ref.block_rows["block_step"]))
+    for name in HISTORY_FIELDS:
+        assert np.array_equal(history.rows[name], ref.rows[name][:rows], equal_nan=True), name
+    for name in BLOCK_FIELDS:
+        assert np.array_equal(history.block_rows[name], ref.block_rows[name][:blocks]), name
+    assert np.array_equal(history.block_indices, ref.block_indices)
 
 
 def _launch(path: str) -> subprocess.Popen:
@@ -110,9 +127,10 @@ def _peek(path: str) -> tuple[int, int] | None:
 
 def _check_archive(path: str, reference, seen: tuple[int, int] | None) -> int:
     """The archive after a kill: opens, keeps what a reader saw, and agrees with the reference."""
-    _, states, ref_series, ref_snaps = reference
+    _, states, ref_series, ref_snaps, ref_history = reference
     with Archive(path) as arc:
         series, snaps = arc.series, arc.snapshots
+        _same_history(arc.history, ref_history)
         rows = series["step"].size
         if seen is not None and seen[0] == os.stat(path).st_ino:
             assert rows >= seen[1], f"{seen[1]} rows were readable before the kill, {rows} after"
@@ -179,11 +197,19 @@ def test_sigkill_at_random_moments_then_resume_is_bitwise_identical(tmp_path, re
         proc = _launch(path)
         out, err = proc.communicate(timeout=120)
         assert proc.returncode == 0, err
-        assert json.loads(out)["steps"] == STEPS
+        report = json.loads(out)
+        assert report["steps"] == STEPS
+        ref_rows = reference[4].as_dict()  # the JSON's history is the uninterrupted run's, bit for bit
+        assert report["history"].keys() == ref_rows.keys()
+        for name, values in ref_rows.items():
+            assert np.array_equal(np.array(report["history"][name], dtype=float), values, equal_nan=True), (
+                name
+            )
     _check_archive(path, reference, None)
     with Archive(path) as arc:
         final = arc.ensemble(threads=1)
         assert arc.rows == STEPS // CHUNK and arc.checkpoint_step == STEPS
+        _same_history(arc.history, reference[4], whole=True)
     assert final.step == ref_ens.step == STEPS
     for name in STATE_FIELDS:
         assert np.array_equal(final.array(name), ref_ens.array(name)), name
@@ -226,7 +252,7 @@ def test_a_torn_row_chunk_of_a_killed_writer_reads_and_resumes(tmp_path, monkeyp
         want, want_snaps = arc.series, arc.snapshots
     path = tmp_path / "run.h5"
     if space == "unpaged":
-        monkeypatch.setattr(writer, "create_h5", lambda p: h5py.File(p, "w", libver=LIBVER))
+        monkeypatch.setattr(building, "create_h5", lambda p: h5py.File(p, "w", libver=LIBVER))
     _archived(tmp_path / "live.h5", 50, live_copy=path)  # 5 rows, 2 snapshots, checkpoint at 50
     monkeypatch.undo()  # the resume below writes as today
     with open_h5(path) as f:

@@ -1,14 +1,16 @@
 """Files of released versions keep opening, inspecting and resuming (tests/data/README.md).
 
-``tests/data/archive_v1.h5`` and ``tests/data/sweep_v1.h5`` were written by warpratchet 0.1.0;
-they stand for files users already have. They are opened read-only in place (and checked to be
-byte for byte unchanged afterwards) and resumed only from copies.
+``tests/data/archive_v1.h5`` and ``tests/data/sweep_v1.h5`` were written by warpratchet 0.1.0,
+``archive_v2.h5`` and ``sweep_v2.h5`` by format v2 before issue 15 (no ``/history``, no verdict
+columns); they stand for files users already have. They are opened read-only in place (and
+checked to be byte for byte unchanged afterwards) and resumed only from copies.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import math
 import shutil
 from pathlib import Path
 
@@ -19,10 +21,13 @@ from support import cli, same_state
 from warpratchet import Ensemble, MapParams, open_archive, summarize
 from warpratchet.archive import SERIES_FIELDS, SNAPSHOT_FIELDS, ArchiveSink, run_to
 from warpratchet.cli import main
+from warpratchet.history import history_steps
 from warpratchet.sweep import read_sweep
+from warpratchet.sweep.records import ADDED_COLUMNS
 
 DATA = Path(__file__).resolve().parent / "data"
 ARCHIVE, SWEEP = DATA / "archive_v1.h5", DATA / "sweep_v1.h5"
+ARCHIVE_V2, SWEEP_V2 = DATA / "archive_v2.h5", DATA / "sweep_v2.h5"
 #: The run that wrote archive_v1.h5 (tests/data/README.md; seed 0 is the CLI's default).
 PARAMS, POINTS, SEED, STEPS = MapParams(3.0, 0.1, 0.01), 200, 0, 512
 SCHEDULE = {"chunk_steps": 64, "snapshot_every": 128, "snapshot_points": 50, "checkpoint_every": 256}
@@ -45,9 +50,10 @@ def archived_run(path: Path, steps: int) -> Ensemble:
 @pytest.fixture(autouse=True)
 def fixtures_untouched():
     """No test may change a fixture file, not even by opening it."""
-    before = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in (ARCHIVE, SWEEP)}
+    files = (ARCHIVE, SWEEP, ARCHIVE_V2, SWEEP_V2)
+    before = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
     yield
-    after = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in (ARCHIVE, SWEEP)}
+    after = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
     assert after == before
 
 
@@ -133,8 +139,55 @@ def test_cli_resumes_archive_v1(tmp_path, capsys):
     assert report["steps"] == 2 * STEPS and report["A"] == expect.A and report["lyapunov"] == expect.lyapunov
 
 
-def test_sweep_v1_reads_its_rows():
-    rows = read_sweep(SWEEP)
-    want = json.loads((DATA / "sweep_v1.json").read_text())
+@pytest.mark.parametrize("version", [1, 2])
+def test_sweep_files_read_their_rows(version, tmp_path, capsys):
+    """Every column as written, floats exactly (JSON keeps every digit of a float64); the columns
+    added since (the verdict of issue 15) read as not recorded; the same sweep computes nothing."""
+    path = DATA / f"sweep_v{version}.h5"
+    rows = read_sweep(path)
+    want = json.loads((DATA / f"sweep_v{version}.json").read_text())
     assert len(rows) == len(want) == 2
-    assert rows == want  # every column, floats exactly (JSON keeps every digit of a float64)
+    assert [{k: v for k, v in row.items() if k not in ADDED_COLUMNS} for row in rows] == want
+    for row in rows:
+        added = {k: row[k] for k in ADDED_COLUMNS}
+        assert added["verdict"] == "" and added["threshold_rule"] == "strict"
+        assert all(
+            math.isnan(added[k]) for k in ("A_stderr_robust", "drift", "drift_z", "diffusion_exponent")
+        )
+    copy = tmp_path / path.name
+    shutil.copy(path, copy)
+    args = [
+        "sweep",
+        "--path",
+        "maximal",
+        "--K",
+        "3",
+        "--b2",
+        "0.02:0.04:2",
+        "--points",
+        "200",
+        "--steps",
+        "512",
+    ]
+    assert main([*args, "--out", str(copy), "--quiet"]) == 0
+    assert capsys.readouterr().out.splitlines()[-1] == f"2 points: 0 computed, 2 read from {copy}"
+
+
+def test_archive_v2_without_history_opens_and_resumes_with_a_verdict(tmp_path, capsys):
+    """An archive written before /history: no history to read; resumed, it reports the session's
+    history and the verdict (not archived: the file keeps its layout), and the state of today's run."""
+    with open_archive(ARCHIVE_V2) as arc:
+        assert arc.format_version == 2 and arc.features == () and arc.history is None
+        assert arc.checkpoint_step == STEPS and arc.settings["threshold_rule"] == "strict"
+        with pytest.raises(ValueError, match="has no history"):
+            arc.to_pandas("history")
+    path = tmp_path / "v2.h5"
+    shutil.copy(ARCHIVE_V2, path)
+    assert main(["resume", str(path), "--steps", str(4 * STEPS), "--quiet", "--json"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert report["history"]["step"] == history_steps(STEPS, 4 * STEPS)  # this session's rows
+    assert report["verdict"] in ("converged", "drifting") and report["A_stderr_robust"] is None  # no blocks
+    expect = summarize(fresh().run(4 * STEPS).state(), 4 * STEPS)
+    assert report["A"] == expect.A == report["history"]["A"][-1]
+    with open_archive(path) as arc:
+        assert arc.features == () and arc.history is None and arc.checkpoint_step == 4 * STEPS

@@ -1,12 +1,31 @@
-"""The run history (issue 15): log-spaced rows, equal to the end summary, independent of chunking."""
+"""The run history (issue 15): log-spaced rows equal to the end summary, block gains, the verdict.
 
+Rows and blocks are independent of chunking, threads and interruption; a history restored from its
+records continues like the uninterrupted one; a drifting history is reported as drifting; the
+threshold rules; ``run --json`` carries the history (resumes from archives: test_archive_kill.py).
+"""
+
+import json
 import math
 
 import numpy as np
 import pytest
+from support import quick_benchmark, run_argv
 
-from warpratchet import Ensemble, MapParams, Observer, summarize
-from warpratchet.history import HISTORY_FIELDS, History, history_row, history_steps
+from warpratchet import Ensemble, MapParams, Observer, RunSpec, acceleration, lyapunov, summarize
+from warpratchet.cli import main
+from warpratchet.history import (
+    BLOCK_FIELDS,
+    HISTORY_FIELDS,
+    History,
+    block_steps,
+    block_subsample,
+    history_row,
+    history_steps,
+)
+from warpratchet.observables import THRESHOLD_RULES as RULE_FACTORS
+from warpratchet.observables import lyapunov_threshold
+from warpratchet.spec import THRESHOLD_RULES
 
 PARAMS = MapParams(3.0, 0.1, 0.01)
 
@@ -81,3 +100,150 @@ def test_bad_arguments_name_the_parameter():
         History(threshold=-1)
     with pytest.raises(ValueError, match="per_decade = 0 is outside the allowed range"):
         History(per_decade=0)
+
+
+# -- block gains, the verdict, the threshold rule, the CLI -----------------------------------------
+def test_block_gains_are_the_momentum_gains_of_a_fixed_subsample_at_equal_blocks():
+    """Each block record is p_n - p_0 (and the FTLE) of the subsample at floor(target j / 64)."""
+    target = 6400
+    ens = Ensemble.sample(PARAMS, 1000, "strip", seed=4, threads=2)
+    history = History(block_points=300)
+    ens.run(target, [history], chunk_steps=999)
+    steps = history.block_rows["block_step"]
+    assert steps == block_steps(0, target) == [100 * j for j in range(1, 65)]
+    idx = history.block_indices
+    assert np.array_equal(idx, block_subsample(1000, 4, 300)) and np.all(np.diff(idx) > 0)
+    twin = Ensemble.sample(PARAMS, 1000, "strip", seed=4, threads=1)
+    for step, gain, ftle in zip(*history.block_rows.values(), strict=True):
+        twin.run(step - twin.step)
+        state = twin.state()
+        p0 = state["p0"]
+        exact = (state["winding"] + (state["q"] - (p0 - np.floor(p0))))[idx]  # A_n * n before the division
+        assert np.array_equal(gain, exact)
+        assert np.allclose(gain / step, acceleration(state, step)[idx], rtol=0, atol=1e-15)
+        assert np.array_equal(ftle, lyapunov(state, step)[idx])
+    gains, reason = history.block_gains(target)
+    assert reason == "" and gains.shape[0] == 64
+    chaotic = history.block_rows["block_gain"][-1][ftle > history_threshold(target)]
+    assert np.allclose(gains.sum(axis=0), chaotic, rtol=1e-12, atol=1e-9)  # the increments add up
+    assert block_steps(0, 100, 64)[:3] == [1, 3, 4] and len(block_steps(0, 100, 64)) == 64
+
+
+def history_threshold(step):
+    return lyapunov_threshold(step, "strict")
+
+
+def test_restored_history_continues_like_the_uninterrupted_one():
+    whole = History()
+    Ensemble.sample(PARAMS, 400, "torus", seed=9).run(3000, [whole], chunk_steps=250)
+    ens = Ensemble.sample(PARAMS, 400, "torus", seed=9)
+    first = History()
+    with pytest.raises(KeyboardInterrupt):
+        ens.run(3000, [first, _StopAt(1250)], chunk_steps=250)
+    keep = [i for i, s in enumerate(first.rows["step"]) if s <= 1250]
+    blocks = [i for i, s in enumerate(first.block_rows["block_step"]) if s <= 1250]
+    again = History.restore(
+        {k: [v[i] for i in keep] for k, v in first.rows.items()},
+        {k: [v[i] for i in blocks] for k, v in first.block_rows.items()},
+        first.block_indices,
+        **first.settings(),
+    )
+    ens.run(3000 - ens.step, [again], chunk_steps=250)
+    assert _same(_rows(again), _rows(whole))
+    for name in BLOCK_FIELDS:
+        assert np.array_equal(np.array(again.block_rows[name]), np.array(whole.block_rows[name])), name
+    assert again.convergence() == whole.convergence()
+
+
+def _synthetic(drift_per_step: float) -> History:
+    """Rows of a run whose A_n moves as A + drift_per_step * (n - 1000), with a small stderr."""
+    steps = history_steps(0, 64_000)
+    a = [0.05 + drift_per_step * (n - 1000) for n in steps]
+    rows = {
+        "step": steps,
+        "A": a,
+        "A_stderr": [1e-4] * len(steps),
+        "sigma": [0.5] * len(steps),
+        "chaotic_fraction": [1.0] * len(steps),
+        "chaotic_points": [10_000] * len(steps),
+        "var_dp_all": [2.0 * n for n in steps],
+        "var_dp_chaotic": [2.0 * n for n in steps],
+    }
+    return History.restore(rows, {name: [] for name in BLOCK_FIELDS}, None)
+
+
+def test_a_drifting_history_is_reported_as_drifting():
+    """The verdict wiring: A_n moving by 10 standard errors between n/2 and n is 'drifting'."""
+    moving = _synthetic(-1e-3 / 32_000).convergence()  # A_n - A_n/2 = -1e-3 = -10 stderr
+    assert moving.verdict == "drifting" and moving.drift == pytest.approx(-1e-3) and moving.drift_z < -3
+    assert math.isnan(moving.A_stderr_robust) and "no block record" in moving.missing
+    still = _synthetic(0.0).convergence()
+    assert still.verdict == "converged" and still.drift == 0.0
+    # The same wiring end to end: a sweep row and the report's result column.
+    from viz.checks import BiasBound, CheckedRow
+
+    row = {"A": 0.05, "A_stderr": 1e-4, "verdict": moving.verdict, "drift_z": moving.drift_z}
+    checked = CheckedRow(row, 0.05, BiasBound(1, 0.0, 0.0, 0.0))
+    assert checked.passed and checked.drifting and checked.result.startswith("drifting (z = -")
+
+
+def test_threshold_rules_and_their_rows():
+    ens = Ensemble.sample(MapParams(2.99, 0.25, 0.005), 1000, "torus", seed=1)
+    strict, positive = History(), History(rule="positive")
+    ens.run(4000, [strict, positive])
+    assert positive.rows["chaotic_points"][-1] > strict.rows["chaotic_points"][-1]
+    s = summarize(ens.state(), 4000, rule="positive")
+    assert (s.A, s.lyapunov) == (positive.rows["A"][-1], positive.rows["sigma"][-1])
+    assert s.threshold == lyapunov_threshold(4000, "positive")
+    assert lyapunov_threshold(4000, "strict") == 10.0 * (1.0 + math.log(4000)) / 4000
+    assert lyapunov_threshold(4000, "positive") == (1.0 + math.log(4000)) / 4000
+    with pytest.raises(ValueError, match="threshold_rule = 'loose' is not one of strict, positive"):
+        History(rule="loose")
+    with pytest.raises(ValueError, match="threshold = 0.01 and threshold_rule = 'positive' both given"):
+        RunSpec(K=3, b1=0.1, b2=0.01, threshold=0.01, threshold_rule="positive")
+    assert set(THRESHOLD_RULES) == set(RULE_FACTORS)
+
+
+def test_run_json_carries_the_history_and_the_verdict(capsys):
+    assert main(run_argv("--points", "500", "--steps", "3000", "--seed", "2", "--json", "--quiet")) == 0
+    report = json.loads(capsys.readouterr().out)
+    history = History()
+    Ensemble.sample(PARAMS, 500, "strip", seed=2).run(3000, [history])
+    expected = {k: [None if isinstance(v, float) and math.isnan(v) else v for v in values] for k, values in
+                history.as_dict().items()}  # fmt: skip
+    assert report["history"] == expected  # equal-length lists, bit for bit (NaN is null in JSON)
+    assert {"step", "A", "A_stderr", "sigma", "var_dp_all", "var_dp_chaotic"} <= report["history"].keys()
+    verdict = history.convergence()
+    assert report["verdict"] == verdict.verdict in ("converged", "drifting")
+    assert (report["drift"], report["drift_z"], report["A_stderr_robust"]) == (
+        verdict.drift,
+        verdict.drift_z,
+        verdict.A_stderr_robust,
+    )
+    assert report["A"] == report["history"]["A"][-1] and report["steps"] == report["history"]["step"][-1]
+
+
+def test_overhead_benchmark_runs_and_the_history_changes_nothing():
+    """Smoke test of benchmarks/history_overhead.py --quick (structure only, no timing assertions)."""
+    report = quick_benchmark("history_overhead.py")
+    assert report["quick"] and report["budget"] == 1.05 and len(report["cases"]) == 2
+    for case in report["cases"]:
+        assert case["identical"] and case["rows"] == len(history_steps(0, case["steps"]))
+        assert case["blocks"] == 64 and case["wall_ratio"] > 0 and case["history_share_of_kernel"] > 0
+
+
+def test_an_archive_refuses_a_history_it_cannot_keep(tmp_path):
+    from warpratchet.archive import ArchiveSink
+
+    ens = Ensemble.sample(PARAMS, 100, "strip", seed=1)
+    with pytest.raises(ValueError, match="classifies with threshold = None, rule = 'strict'; the archive"):
+        ArchiveSink(tmp_path / "a.h5", ens, threshold_rule="positive", history=History())
+    used = History()
+    ens.run(100, [used])
+    with pytest.raises(ValueError, match="holds records of an earlier run"):
+        ArchiveSink(tmp_path / "b.h5", ens, history=used)
+    sink = ArchiveSink(tmp_path / "c.h5", ens, history=History())  # not among the run's observers
+    with pytest.raises(ValueError, match="missed its step .*: pass sink.history to Ensemble.run"):
+        ens.run(1000, [sink], chunk_steps=500)
+    sink.close()
+    assert not (tmp_path / "a.h5").exists() and not (tmp_path / "b.h5").exists()

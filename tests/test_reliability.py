@@ -42,7 +42,10 @@ def test_a_long_run_is_reliable_and_says_nothing_more(capsys):
     argv = ["run", *MAP_FLAGS, "--steps", "20000", "--points", "4000", "--quiet"]
     assert main(argv) == 0
     out = capsys.readouterr().out
-    assert "UNRELIABLE" not in out and len(out.strip().splitlines()) == 4
+    lines = out.strip().splitlines()
+    # The header, A, sigma, the convergence verdict (issue 15) and the speed: no warning line.
+    assert "UNRELIABLE" not in out and len(lines) == 5
+    assert lines[3].startswith("  convergence :") and lines[3].endswith(": converged")
     assert main([*argv, "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["reliable"] is True and report["reason"] == ""

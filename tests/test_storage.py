@@ -19,7 +19,7 @@ import pytest
 from support import MAP_FLAGS, cli
 
 from warpratchet import Ensemble, MapParams, open_archive, summarize
-from warpratchet.archive import ArchiveSink, layout, resume, rows, writer
+from warpratchet.archive import ArchiveSink, layout, resume, rows, slots
 from warpratchet.cli import main
 from warpratchet.sweep import file as sweep_file
 from warpratchet.sweep import read_sweep
@@ -73,7 +73,9 @@ def small_disk(tmp_path):
 def test_disk_full_mid_run_then_resumed(small_disk):
     mnt, fill = small_disk
     out = mnt / "run.h5"
-    fill(2_700_000)  # room for the file, the initial state and one checkpoint, not two
+    # Room for the file, the initial state, one checkpoint and the rows up to the second, not two
+    # checkpoints (a slot needs 1.38 MB; the history's block gains take ~0.7 MB up to step 400).
+    fill(4_200_000)
     argv = [*RUN, "--steps", "1000", "--out", str(out)]
     proc = cli(*argv)
     assert proc.returncode == 1, proc.stderr
@@ -148,7 +150,7 @@ def _enospc(*args, **kwargs):
     [
         ("creation", layout, "create"),
         ("series row", rows.Rows, "put"),
-        ("checkpoint", writer, "sync_h5"),
+        ("checkpoint", slots, "sync_h5"),
     ],
 )
 def test_injected_enospc_in_a_run(tmp_path, monkeypatch, capsys, where, target, name):

@@ -16,7 +16,7 @@ import pytest
 from warpratchet import sweep as sweep_module
 from warpratchet.cli import main
 from warpratchet.errors import FileFormatError
-from warpratchet.sweep import SweepSpec, maximal_path, read_sweep, run_sweep
+from warpratchet.sweep import ROW_FIELDS, SweepSpec, maximal_path, read_sweep, run_sweep
 from warpratchet.sweep.file import SweepFile
 
 SPEC = SweepSpec(points=60, steps=200, seed=2)
@@ -125,7 +125,7 @@ def test_read_sweep_while_a_sweep_writes(tmp_path):
             if path.exists():
                 rows = read_sweep(path)
                 seen.add(len(rows))
-                assert all(len(row) == 19 and row["steps"] == 2000 for row in rows)
+                assert all(len(row) == len(ROW_FIELDS) == 25 and row["steps"] == 2000 for row in rows)
                 reads += 1
             time.sleep(0.002)
     finally:

@@ -25,7 +25,7 @@ def _viz(*args: str, cwd: Path = ROOT, package: str = "viz") -> subprocess.Compl
 def test_help_exits_0_and_names_every_command():
     done = _viz("--help")
     assert done.returncode == 0, done.stderr
-    for command in ("figures", "scenes", "record", "report"):
+    for command in ("figures", "scenes", "record", "report", "history"):
         assert command in done.stdout
     assert _viz("figures", "--help").returncode == 0
 
@@ -106,3 +106,19 @@ def test_viz_imports_itself_relatively():
             elif isinstance(node, ast.ImportFrom) and node.level == 0:
                 names = [node.module or ""]
             assert not [n for n in names if n == "viz" or n.startswith("viz.")], f"{path}: {names}"
+
+
+def test_history_plots_an_archives_history(tmp_path):
+    """``python -m viz history run.h5 -o history.png``; an archive without a history is one line, status 2."""
+    from warpratchet import Ensemble, MapParams
+
+    path = tmp_path / "run.h5"
+    Ensemble.sample(MapParams(3.0, 0.1, 0.01), 500, "strip", 1).run(4000, archive=path)
+    done = _viz("history", str(path), "-o", str(tmp_path / "history.png"))
+    assert done.returncode == 0, done.stderr
+    assert (tmp_path / "history.png").read_bytes().startswith(b"\x89PNG")
+    old = _viz("history", str(ROOT / "tests" / "data" / "archive_v2.h5"), "-o", str(tmp_path / "old.png"))
+    assert (
+        old.returncode == 2 and len(old.stderr.strip().splitlines()) == 1 and "has no history" in old.stderr
+    )
+    assert not (tmp_path / "old.png").exists()

@@ -1,4 +1,4 @@
-"""``python -m viz <command> ...``: dispatch to the ``main`` of viz.figures, scenes, record or report."""
+"""``python -m viz <command> ...``: the ``main`` of viz.figures, scenes, record, report or history."""
 
 from __future__ import annotations
 
@@ -15,6 +15,7 @@ COMMANDS = {
     "scenes": "record the paper's phase-space scenes (Figs. 1, 2, 4) as .rrd",
     "record": "replay an archive's snapshots into a rerun .rrd",
     "report": "write docs/validation.md from the sweep files of the figures",
+    "history": "plot a run's history (A_n and sigma_n against n) from its archive",
 }
 
 

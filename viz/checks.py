@@ -43,12 +43,14 @@ __all__ = [
     "sigma_stderr",
     "sigma_range",
     "rises",
+    "robust_stderr",
 ]
 
 #: Standard errors allowed between numerics and closed form (plus the bias bound).
 Z_MAX = 4.0
-#: The sweep files the report needs (``fig6.h5`` is used when present).
-REQUIRED = ("fig7", "fig7_inset", "fig8", "fig9")
+#: The sweep files the report needs (``fig6.h5`` is used when present): ``fig9`` is the strip
+#: ensemble on Fig. 9's path, ``fig9_paper`` the paper's (:data:`warpratchet.paper.FIG9_ENSEMBLE`).
+REQUIRED = ("fig7", "fig7_inset", "fig8", "fig9", "fig9_paper")
 
 
 # -- the bias of a run started in B ------------------------------------------------------------
@@ -121,10 +123,24 @@ class CheckedRow:
     def passed(self) -> bool:
         return abs(self.deviation) < self.tolerance
 
+    @property
+    def drifting(self) -> bool:
+        """A_n still moves between n/2 and n by more than 3 of its standard errors (the row's verdict)."""
+        return self.row["verdict"] == "drifting"
+
+    @property
+    def result(self) -> str:
+        """``pass``, ``**FAIL**``, or, for a row whose A still drifts, ``drifting (z = ...)`` instead of
+        ``pass`` (``**FAIL**, drifting`` for both): its A is not yet the n -> infinity limit."""
+        drift = f"drifting (z = {self.row['drift_z']:+.1f})"
+        if not self.passed:
+            return "**FAIL**, " + drift if self.drifting else "**FAIL**"
+        return drift if self.drifting else "pass"
+
 
 def closed_form(name: str, row: dict[str, Any]) -> float:
     """The paper's A for a row: Eq. (Aa)/(Ab) at K = 3; for Fig. 9 (K = 2.99) Eq. (Ab) at K = 3."""
-    if name == "fig9":
+    if name in ("fig9", "fig9_paper"):
         return float(theory.acceleration(MapParams(paper.K3, row["b1"], row["b2"])))
     value = theory.acceleration(MapParams(row["K"], row["b1"], row["b2"]))
     if value is None:  # pragma: no cover - every path of Figs. 7 and 8 is at K = 3
@@ -167,11 +183,19 @@ def sigma_range(rows: list[dict[str, Any]]) -> tuple[float, float]:
     return min(sigma), max(sigma)
 
 
-def rises(checked: list[CheckedRow]) -> list[tuple[float, float, float]]:
-    """Neighbouring points (sorted by b2) where A rises by more than Z_MAX combined standard errors."""
+def robust_stderr(row: dict[str, Any]) -> float:
+    """A row's robust standard error, never below the plain one (older sweep files: the plain one)."""
+    robust = row["A_stderr_robust"]
+    return max(row["A_stderr"], robust) if math.isfinite(robust) else row["A_stderr"]
+
+
+def rises(checked: list[CheckedRow], robust: bool = False) -> list[tuple[float, float, float]]:
+    """Neighbouring points (sorted by b2) where A rises by more than Z_MAX combined standard errors
+    (the plain ones, or the robust ones)."""
+    error = robust_stderr if robust else (lambda row: row["A_stderr"])
     out = []
     for left, right in zip(checked, checked[1:], strict=False):
-        se = math.hypot(left.row["A_stderr"], right.row["A_stderr"])
+        se = math.hypot(error(left.row), error(right.row))
         z = (right.row["A"] - left.row["A"]) / se
         if z > Z_MAX:
             out.append((left.row["b2"], right.row["b2"], z))

@@ -1,15 +1,20 @@
 """Generate ``docs/validation.md``: the paper's numbers against warpratchet's, from sweep files.
 
 ``python -m viz.report --sweeps DIR --out docs/validation.md`` reads the sweep files written by
-``python -m viz figures`` (``DIR/fig7.h5``, ``fig7_inset.h5``, ``fig8.h5``, ``fig9.h5`` and, if
-present, ``fig6.h5``) and writes a Markdown report: point by point, the numerical A with its
-standard error against the closed forms (Eqs. Aa, Ab and the maximal-path form of Eq. Amax),
-with a pass/fail column; the limits 1/4 (Eq. Am) and 1/8 (Eq. Ama, a = 1/3); the Lyapunov ranges;
-and every place where the numbers and the paper differ.
+``python -m viz figures`` (``DIR/fig7.h5``, ``fig7_inset.h5``, ``fig8.h5``, ``fig9.h5``,
+``fig9_paper.h5`` and, if present, ``fig6.h5``) and, if present, the JSON results of the long
+scripts (``DIR/fig9_ensembles.json`` of ``scripts/fig9_ensembles.py --json``,
+``DIR/ae_census.json`` of ``scripts/ae_census.py --json``), and writes a Markdown report: point
+by point, the numerical A with its plain and robust standard errors against the closed forms
+(Eqs. Aa, Ab and the maximal-path form of Eq. Amax), with a pass/fail column that says
+``drifting`` where A_n has not converged; Fig. 9 with the paper's ensemble and the strip's A
+beside it; the limits 1/4 (Eq. Am) and 1/8 (Eq. Ama, a = 1/3); the Lyapunov ranges; every place
+where the numbers and the paper differ; and where Eq. (Ae) stops describing the island census.
 
 The verdicts and their test (``|A - A_theory| < 4 A_stderr + beta``, with the bias bound beta)
-are :mod:`viz.checks`; the tables :mod:`viz.sections`; the list of differences
-:mod:`viz.differences`. This module puts them together and writes the file.
+are :mod:`viz.checks`; the tables :mod:`viz.sections`; Fig. 9 :mod:`viz.fig9`; Eq. (Ae)
+:mod:`viz.eq_ae`; the list of differences :mod:`viz.differences`. This module puts them together
+and writes the file.
 
 The block between ``<!-- census:begin -->`` and ``<!-- census:end -->`` of an existing report
 (written by the island-census tool) is kept verbatim; everything else is regenerated.
@@ -18,14 +23,13 @@ The block between ``<!-- census:begin -->`` and ``<!-- census:end -->`` of an ex
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import shutil
 import sys
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
-
-import numpy as np
 
 from warpratchet import __version__, paper, theory
 from warpratchet._files import publish, temporary_beside
@@ -42,6 +46,8 @@ from .checks import (
 )
 from .command import command_name, run
 from .differences import differences_section
+from .eq_ae import eq_ae_section
+from .fig9 import fig9_section
 from .sections import limits_section, lyapunov_section, settings_line, table
 
 __all__ = [
@@ -68,9 +74,18 @@ GENERATED = (
 
 
 def render(
-    sweeps: dict[str, list[dict[str, Any]]], census: str, sweeps_dir: str, threads: int | None = None
+    sweeps: dict[str, list[dict[str, Any]]],
+    census: str,
+    sweeps_dir: str,
+    threads: int | None = None,
+    extras: dict[str, Any] | None = None,
 ) -> str:
-    """The whole report as Markdown (``census`` is inserted verbatim)."""
+    """The whole report as Markdown (``census`` is inserted verbatim).
+
+    ``extras``: the JSON results of the long scripts, ``fig9_ensembles`` (scripts/fig9_ensembles.py)
+    and ``ae_census`` (scripts/ae_census.py); a section whose result is missing says how to make it.
+    """
+    extras = extras or {}
     checked = {name: check_rows(name, sweeps[name], threads) for name in REQUIRED}
     k3 = checked["fig7"] + checked["fig7_inset"] + checked["fig8"]
     passed = sum(c.passed for c in k3)
@@ -131,6 +146,9 @@ def render(
             if max_beta_ratio < 1.0
             else "."
         ),
+        _drift_summary(k3, checked["fig9_paper"], checked["fig9"]),
+        _fig9_summary(sweeps),
+        *([_ae_summary(extras["ae_census"])] if extras.get("ae_census") else []),
         "",
         "## The test",
         "",
@@ -151,6 +169,17 @@ def render(
         "since |K f(x)| < K/2). The assumption, stated: the excess displacement after T0 steps sums to less "
         "than that bound.",
         "",
+        "Convergence (issue 15). One number per run hides whether A_n has settled: near islands orbits stick "
+        "for heavy-tailed times. Every run records its history (`warpratchet.history`: A_n at log-spaced n, "
+        "and the momentum gains of 4096 of its orbits over 64 equal time blocks). `robust se` is the "
+        "standard "
+        "error of A from batch means over time (`warpratchet.convergence.robust_stderr`: the across-orbit "
+        "variance of the gain over blocks of T steps, fitted as T^mu on the finest blocks and extrapolated "
+        "to n; never below the plain one), which stays honest when rare long flights carry the variance. "
+        "The verdict compares A_n with A_n/2: a row whose drift exceeds 3 of its standard errors (built on "
+        "the robust error) says `drifting (z = ...)` instead of `pass`; its A is still moving at n and is "
+        "biased by about the drift.",
+        "",
         f"## Fig. 7: maximal path, Eq. (b2max), K = 3 ({settings_line(sweeps['fig7'])})",
         "",
         "Closed form: Eq. (Aa) at b1 = b1(b2), i.e. Eq. (Amax) corrected. The last two columns give Eq. "
@@ -169,21 +198,8 @@ def render(
         "",
         *table(checked["fig8"]),
         "",
-        f"## Fig. 9: K = {paper.FIG9.K}, b1 = {paper.FIG9.b1} ({settings_line(sweeps['fig9'])})",
-        "",
-        "The paper draws Eq. (Ab) **at K = 3** next to numerics at K = 2.99; no closed form exists at "
-        "K = 2.99, so this table measures how close the K = 3 formula stays, without a verdict.",
-        "",
-        *table(checked["fig9"], verdict=False),
-        "",
     ]
-    fig9_dev = [c.deviation for c in checked["fig9"]]
-    out += [
-        f"Largest |A(K = 2.99) - A(K = 3)|: {max(map(abs, fig9_dev)):.5f}; mean deviation "
-        f"{np.mean(fig9_dev):+.5f}. Where no period-1 island exists at K = 3 (domain `none`, see below) the "
-        "closed form is A = 0 (case c of Sec. IV), not Eq. (Ab).",
-        "",
-    ]
+    out += fig9_section(checked, sweeps, extras.get("fig9_ensembles"), sweeps_dir)
     out += limits_section(checked)
     out += lyapunov_section(sweeps, checked)
     out += differences_section(
@@ -192,7 +208,52 @@ def render(
     # The census tool's block carries its own heading ("Island census and the sum rule": the
     # sum-rule areas S_L, S_R, S_C measured on the torus); it is kept verbatim.
     out += [census, ""]
+    out += eq_ae_section(extras.get("ae_census"), sweeps_dir)
     return "\n".join(out)
+
+
+def _drift_summary(k3: list[CheckedRow], fig9_paper: list[CheckedRow], fig9_strip: list[CheckedRow]) -> str:
+    parts = []
+    for label, rows in (
+        ("K = 3", k3),
+        ("Fig. 9, paper's ensemble", fig9_paper),
+        ("Fig. 9, strip", fig9_strip),
+    ):
+        drifting = [c for c in rows if c.drifting]
+        named = ", ".join(f"b2 = {c.row['b2']:.5g} (z = {c.row['drift_z']:+.1f})" for c in drifting)
+        parts.append(f"{label}: {len(drifting)} of {len(rows)}" + (f" ({named})" if drifting else ""))
+    return (
+        "- Convergence: A_n still drifts between n/2 and n by more than 3 (robust) standard errors at "
+        + "; ".join(parts)
+        + "."
+    )
+
+
+def _fig9_summary(sweeps: dict[str, list[dict[str, Any]]]) -> str:
+    rows = sorted(sweeps["fig9_paper"], key=lambda r: r["b2"])
+    strip = sorted(sweeps["fig9"], key=lambda r: r["b2"])
+    lo, hi = paper.FIG9_SIGMA
+    return (
+        f"- Fig. 9's Lyapunov range ({lo} < sigma < {hi}) is the paper's own ensemble's: initial conditions "
+        f"uniform on the torus, chaotic when the FTLE exceeds (1 + ln n)/n, give sigma = "
+        f"{rows[0]['lyapunov']:.4f} at b2 = {rows[0]['b2']:.3f} "
+        f"({100 * (rows[0]['lyapunov'] / lo - 1):+.2f} %) "
+        f"and {rows[-1]['lyapunov']:.4f} at b2 = {rows[-1]['b2']:.3f} "
+        f"({100 * (rows[-1]['lyapunov'] / hi - 1):+.2f} %); the strip B of Figs. 7-8 gives "
+        f"{strip[0]['lyapunov']:.4f} and {strip[-1]['lyapunov']:.4f}. A depends on the ensemble (Fig. 9 "
+        "section)."
+    )
+
+
+def _ae_summary(census: dict[str, Any]) -> str:
+    rows = [r for r in census["table"] if r["higher"] and r.get("label") != "K = 3 control"]
+    worst = max(rows, key=lambda r: abs(r["D_z"]))
+    return (
+        "- Eq. (Ae) (period-1 islands only) describes the census at K = 3 but not away from it: islands of "
+        f"higher period carry up to {abs(worst['D']):.4f} of A ({abs(worst['D_z']):.0f} standard errors, "
+        f'K = {worst["K"]}, b1 = {worst["b1"]}, b2 = {worst["b2"]}); see "Where Eq. (Ae) stops describing '
+        'the census".'
+    )
 
 
 # -- the file -----------------------------------------------------------------------------------
@@ -223,6 +284,20 @@ def _foreign_content(existing: str) -> bool:
     return bool(rest.strip())
 
 
+def load_extras(sweeps_dir: Path) -> dict[str, Any]:
+    """The JSON results of the long scripts found in ``sweeps_dir`` (``fig9_ensembles.json``,
+    ``ae_census.json``); a missing one is left out (its section says how to make it)."""
+    extras = {}
+    for name in ("fig9_ensembles", "ae_census"):
+        path = sweeps_dir / f"{name}.json"
+        if path.exists():
+            try:
+                extras[name] = json.loads(path.read_text(encoding="utf-8"))
+            except ValueError as exc:
+                raise ValueError(f"{path} is not the JSON of scripts/{name}.py --json ({exc})") from None
+    return extras
+
+
 def write_report(sweeps_dir: Path, out: Path, force: bool = False, threads: int | None = None) -> str:
     """Render the report from ``sweeps_dir`` and write it to ``out`` atomically; returns the text.
 
@@ -232,7 +307,9 @@ def write_report(sweeps_dir: Path, out: Path, force: bool = False, threads: int 
     existing = out.read_text(encoding="utf-8") if out.exists() else None
     if existing is not None and _foreign_content(existing) and not force:
         raise ValueError(f"{out} exists and was not written by viz.report; pass --force to replace it")
-    text = render(load_sweeps(sweeps_dir), census_block(existing), str(sweeps_dir), threads)
+    text = render(
+        load_sweeps(sweeps_dir), census_block(existing), str(sweeps_dir), threads, load_extras(sweeps_dir)
+    )
     out.parent.mkdir(parents=True, exist_ok=True)
     # Written beside, made durable, renamed into place (warpratchet._files: one implementation).
     with temporary_beside(out) as tmp:

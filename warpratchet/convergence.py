@@ -74,8 +74,9 @@ __all__ = [
 
 #: ``|z|`` above which ``A_n - A_{n/2}`` counts as drift (two-sided Gaussian tail 0.27%).
 DRIFT_Z_MAX = 3.0
-#: Possible :attr:`Drift.verdict` values.
-VERDICTS = ("converged", "drifting", "too short")
+#: Possible :attr:`Drift.verdict` values; ``"undefined"``: no A or no error at n or n/2 (no
+#: chaotic points, or a single one).
+VERDICTS = ("converged", "drifting", "too short", "undefined")
 
 
 def _as_history(steps, values, name: str) -> tuple[np.ndarray, np.ndarray]:
@@ -207,6 +208,8 @@ def drift(
     factor = math.sqrt(max(1.0, 2.0 ** (2.0 - mu) - 1.0)) if math.isfinite(mu) else 1.0
     delta = float(a[-1]) - half
     err = base * factor
+    if not (math.isfinite(delta) and err >= 0):  # NaN A or error: nothing to judge
+        return Drift(int(n), float(a[-1]), half, delta, err, math.nan, mu, "undefined", rule)
     z = delta / err if err > 0 else (math.inf if delta else 0.0)
     verdict = "drifting" if abs(z) > z_max else "converged"
     return Drift(int(n), float(a[-1]), half, delta, err, z, mu, verdict, rule)

@@ -1,4 +1,4 @@
-"""Ensembles of points of the map: state, initial-condition samplers and the run loop.
+"""Ensembles of points of the map: state and the run loop (samplers in :mod:`warpratchet.sampling`).
 
 An :class:`Ensemble` owns the per-point state on a Warp device and advances it with the kernel
 of :mod:`warpratchet.kernels`. State per point (all float64 unless noted, 56 bytes in all)::
@@ -18,7 +18,6 @@ is independent, so results are bitwise identical for any thread count.
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Iterable, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -32,6 +31,7 @@ from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from .observables import Summary, summarize
 from .params import MapParams
 from .runloop import Observer, archive_sink, run_chunks
+from .sampling import _BUILD_CHUNK, grid_nodes, sample_grid, sample_strip, sample_torus, sampled_chunks
 from .spec import MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS
 
 __all__ = [
@@ -54,99 +54,8 @@ __all__ = [
 STATE_FIELDS = ("x", "q", "winding", "p0", "dx", "dp", "log_stretch")
 #: The state arrays the kernels take, in their argument order (p0 is not needed to advance).
 _KERNEL_FIELDS = ("x", "q", "winding", "dx", "dp", "log_stretch")
-#: Initial-condition samplers by name, :data:`warpratchet.spec.SAMPLERS` (``"user"`` is an
-#: ensemble built from arrays).
-
-#: Grid offsets in units of the spacing. The golden-ratio fraction on the x axis keeps nodes
-#: off the kinks x = b1 and x = 1 - b2 for any b1, b2 with small denominators. The p axis has
-#: a different irrational offset: with one offset on both axes p - x is a multiple of the
-#: spacing, and nodes then sit exactly on the slope-1 edges p = x - b1 + k of Eq. (B1e)
-#: (0.1% of the nodes at b1 = 0.1, G = 450).
-GRID_OFFSET = (math.sqrt(5.0) - 1.0) / 2.0
-GRID_P_OFFSET = math.sqrt(2.0) - 1.0
-
-
-# -- initial conditions ---------------------------------------------------------------------
-def sample_strip(params: MapParams, n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` points uniform in the hyperbolic strip B of Eq. (B).
-
-    B is ``-b2 <= x <= b1`` (mod 1), ``0 <= p < 1``: the ensemble of Figs. 2 and 7-9.
-    Returns ``(x, p)``, each of shape ``(n,)``, in ``[0, 1)``.
-    """
-    return _strip_x(params, rng.random(n)), rng.random(n)
-
-
-def _strip_x(params: MapParams, u: np.ndarray) -> np.ndarray:
-    """Positions in B from uniform ``u`` in [0, 1)."""
-    return np.mod(-params.b2 + params.b * u, 1.0)
-
-
-def sample_torus(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
-    """``n`` points uniform on the unit torus ``[0, 1)^2``."""
-    return rng.random(n), rng.random(n)
-
-
-def grid_nodes(side: int) -> tuple[np.ndarray, np.ndarray]:
-    """A ``side x side`` lattice on the torus, shape ``(side^2,)`` each.
-
-    Nodes sit at ``((i + o_x)/G, (j + o_p)/G)`` with the irrational offsets :data:`GRID_OFFSET`
-    and :data:`GRID_P_OFFSET`, so no node lands on a kink of the force or on the sloped edges of
-    the regions of Appendix B. Row-major in ``p``: node ``(i, j)`` is element ``j * G + i``.
-    """
-    side = check_count("grid", side, 1)
-    x, p = np.meshgrid(*_grid_axes(side), indexing="xy")
-    return x.ravel(), p.ravel()
-
-
-def _grid_axes(side: int) -> tuple[np.ndarray, np.ndarray]:
-    return (np.arange(side) + GRID_OFFSET) / side, (np.arange(side) + GRID_P_OFFSET) / side
-
-
-def sample_grid(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """The :func:`grid_nodes` lattice with ``G = isqrt(n)`` (so ``G^2 <= n`` points)."""
-    side = math.isqrt(n)
-    if side < 1:
-        raise ValueError(f"points = {n!r} is too few for a grid (need at least 1)")
-    return grid_nodes(side)
-
-
-#: Points built at a time: an ensemble's temporaries stay a few MB whatever its size.
-_BUILD_CHUNK = 1 << 18
-
-
-def _sampled_chunks(params: MapParams, init: str, points: int, seed: int):
-    """``(n, chunks)``: the ``n`` points of a named sampler as consecutive ``(lo, x, p)`` chunks.
-
-    Bitwise the points of :func:`sample_strip`, :func:`sample_torus` (``default_rng(seed)``) and
-    :func:`sample_grid`, without their full-size arrays: x takes the generator's first ``points``
-    doubles and p the next ``points``, so p comes from a second generator advanced by ``points``
-    draws (one 64-bit draw per double); grid nodes are looked up on their axes.
-    """
-    if init == "grid":
-        side = math.isqrt(points)
-        if side < 1:
-            raise ValueError(f"points = {points!r} is too few for a grid (need at least 1)")
-        x_axis, p_axis = _grid_axes(side)
-        n = side * side
-
-        def grid():
-            for lo in range(0, n, _BUILD_CHUNK):
-                node = np.arange(lo, min(n, lo + _BUILD_CHUNK))
-                yield lo, x_axis[node % side], p_axis[node // side]
-
-        return n, grid()
-    if init not in SAMPLERS:
-        raise ValueError(f"init = {init!r} is not one of {', '.join(SAMPLERS)}")
-    rng_x = np.random.default_rng(seed)
-    rng_p = np.random.default_rng(seed)
-    rng_p.bit_generator.advance(points)
-
-    def uniform():
-        for lo in range(0, points, _BUILD_CHUNK):
-            u = rng_x.random(min(_BUILD_CHUNK, points - lo))
-            yield lo, (_strip_x(params, u) if init == "strip" else u), rng_p.random(u.size)
-
-    return points, uniform()
+# The initial-condition samplers (``SAMPLERS``, ``sample_*``, ``grid_nodes``) live in
+# :mod:`warpratchet.sampling`; they are re-exported here, where callers have always found them.
 
 
 def default_threads() -> int:
@@ -288,7 +197,7 @@ class Ensemble:
         check_choice("init", init, SAMPLERS)
         # Built chunk by chunk into the state (the same points as sample_strip, sample_torus and
         # sample_grid): no full-size temporaries, so 10^8 points need little more than their state.
-        chunks = _sampled_chunks(params, init, points, seed)
+        chunks = sampled_chunks(params, init, points, seed)
         return cls(
             params, None, None, device=device, threads=threads, sampler=init, seed=seed, _chunks=chunks
         )
@@ -401,8 +310,9 @@ class Ensemble:
             Draw a progress bar (``tqdm.auto``: a widget in Jupyter, text elsewhere).
         archive : str or PathLike, optional
             Stream the run into this HDF5 archive (:mod:`warpratchet.archive`) with its own
-            chunking: a new file, or one this ensemble was archived to before and is still at the
-            checkpoint of (then the run is appended). Closed when the run ends.
+            chunking and the run's history (:class:`~warpratchet.history.History`, group
+            ``/history``): a new file, or one this ensemble was archived to before and is still at
+            the checkpoint of (then the run is appended). Closed when the run ends.
 
         Raises
         ------
@@ -417,6 +327,8 @@ class Ensemble:
         sink = None
         if archive is not None:
             sink = archive_sink(self, archive, chunk_steps)
+            if sink.history is not None:
+                observers.append(sink.history)  # its rows end chunks at their steps
             observers.append(sink)
             chunk_steps = sink.chunk_steps
         if progress:

@@ -16,6 +16,8 @@ import numpy as np
 __all__ = [
     "acceleration",
     "lyapunov",
+    "THRESHOLD_RULES",
+    "lyapunov_threshold",
     "default_lyapunov_threshold",
     "chaotic_mask",
     "mean_stderr",
@@ -63,29 +65,57 @@ def lyapunov(state: dict[str, np.ndarray], step: int) -> np.ndarray:
     return (state["log_stretch"] + np.log(np.hypot(state["dx"], state["dp"]))) / step
 
 
-def default_lyapunov_threshold(step: int) -> float:
-    """Default chaos threshold on the FTLE after ``step`` iterations: ``10 (1 + ln n) / n``.
+#: Rules for the FTLE threshold when none is given: ``threshold = factor (1 + ln n)/n`` with the
+#: factor of the rule (:func:`lyapunov_threshold`). The names are
+#: :data:`warpratchet.spec.THRESHOLD_RULES` (RunSpec's ``threshold_rule``).
+THRESHOLD_RULES = {"strict": 10.0, "positive": 1.0}
 
-    Why this value. A regular orbit has a tangent that grows at most linearly, ``|v_n| <= a + b n``:
-    in the islands around the period-1 modes the map is affine with the elliptic ``DM`` of
-    Eq. (eig), so ``|v_n|`` stays bounded (``a`` of order the eigenvector condition number, a few
-    units), and around higher-period orbits the shear makes it grow like ``n``. Either way the
-    FTLE is below ``(ln a + ln(1 + b n))/n``, i.e. ``(1 + ln n)/n`` times a factor that is O(1)
-    for any island whose ``a, b < e^9``; the factor 10 leaves that margin. Chaotic orbits
-    converge to ``sigma > 0``; the smallest sigma in the paper's range (Fig. 7 inset) is
-    ~0.03, far above the threshold at the paper's ``n = 120000`` (1.1e-3). For short runs the
-    threshold rises (0.08 at ``n = 1000``) and weak chaos cannot be told from regular motion:
-    run longer, or pass a threshold.
+
+def lyapunov_threshold(step: int, rule: str = "strict") -> float:
+    """Chaos threshold on the FTLE after ``step`` iterations by a named rule: ``factor (1 + ln n)/n``.
+
+    Why ``(1 + ln n)/n``. A regular orbit has a tangent that grows at most linearly,
+    ``|v_n| <= a + b n``: in the islands around the period-1 modes the map is affine with the
+    elliptic ``DM`` of Eq. (eig), so ``|v_n|`` stays bounded (``a`` of order the eigenvector
+    condition number, a few units), and around higher-period orbits the shear makes it grow like
+    ``n``. Either way the FTLE is below ``(ln a + ln(1 + b n))/n``, i.e. ``(1 + ln n)/n`` times a
+    factor that is O(1) for islands with small ``a, b``.
+
+    The rules:
+
+    * ``"strict"`` (the default, :func:`default_lyapunov_threshold`): factor 10, a margin for any
+      island whose ``a, b < e^9``. Chaotic orbits converge to ``sigma > 0``; the smallest sigma in
+      the paper's range (Fig. 7 inset) is ~0.03, far above the threshold at the paper's
+      ``n = 120000`` (1.1e-3). For short runs the threshold rises (0.08 at ``n = 1000``) and weak
+      chaos cannot be told from regular motion: run longer, or pass a threshold.
+    * ``"positive"``: factor 1, an FTLE just distinguishable from the linear growth of a regular
+      tangent: the paper's "positive finite-time Lyapunov exponents" (caption of Fig. 7). With
+      initial conditions on the torus it reproduces the Lyapunov range of Fig. 9 (docs/validation.md,
+      Fig. 9); it also counts weakly chaotic orbits locked to an island for the whole run.
     """
     if step <= 0:
         raise ValueError(f"step = {step!r}: the threshold needs at least one iteration")
-    return 10.0 * (1.0 + math.log(step)) / step
+    try:
+        factor = THRESHOLD_RULES[rule]
+    except (KeyError, TypeError):
+        raise ValueError(f"threshold_rule = {rule!r} is not one of {', '.join(THRESHOLD_RULES)}") from None
+    return factor * (1.0 + math.log(step)) / step
 
 
-def chaotic_mask(ftle: np.ndarray, step: int, threshold: float | None = None) -> np.ndarray:
-    """Boolean mask of chaotic points: ``ftle > threshold`` (default :func:`default_lyapunov_threshold`)."""
+def default_lyapunov_threshold(step: int) -> float:
+    """Default chaos threshold on the FTLE after ``step`` iterations: ``10 (1 + ln n) / n``.
+
+    The rule ``"strict"`` of :func:`lyapunov_threshold` (which says why).
+    """
+    return lyapunov_threshold(step, "strict")
+
+
+def chaotic_mask(
+    ftle: np.ndarray, step: int, threshold: float | None = None, rule: str = "strict"
+) -> np.ndarray:
+    """Boolean mask of chaotic points: ``ftle > threshold`` (default: the rule's threshold)."""
     if threshold is None:
-        threshold = default_lyapunov_threshold(step)
+        threshold = lyapunov_threshold(step, rule)
     return ftle > threshold
 
 
@@ -206,8 +236,13 @@ def _per_point(state: dict[str, np.ndarray], step: int, lo: int, hi: int) -> tup
     return lyapunov(part, step), acceleration(part, step)
 
 
-def summarize(state: dict[str, np.ndarray], step: int, threshold: float | None = None) -> Summary:
+def summarize(
+    state: dict[str, np.ndarray], step: int, threshold: float | None = None, rule: str = "strict"
+) -> Summary:
     """Mean ``A_n`` over chaotic points with its standard error, FTLE statistics, chaotic fraction.
+
+    Chaotic: FTLE above ``threshold``, or, when it is None, above :func:`lyapunov_threshold` of
+    ``rule`` (``"strict"``: ``10 (1 + ln n)/n``; ``"positive"``: ``(1 + ln n)/n``).
 
     The standard error is ``std / sqrt(N_chaotic)``: points are independent samples of the
     initial distribution, so it is the honest sampling error of the ensemble mean. Quantities
@@ -232,7 +267,7 @@ def summarize(state: dict[str, np.ndarray], step: int, threshold: float | None =
     array would: the same error bound (``O(log N)`` roundings), different last bits.
     """
     if threshold is None:
-        threshold = default_lyapunov_threshold(step)
+        threshold = lyapunov_threshold(step, rule)
     n = len(state["log_stretch"])
     bounds = [(lo, min(n, lo + SUMMARY_CHUNK)) for lo in range(0, max(n, 1), SUMMARY_CHUNK)]
     # One chunk: keep its per-point values for the second pass instead of computing them again.

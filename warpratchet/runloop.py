@@ -182,6 +182,9 @@ def run_chunks(
 def archive_sink(ensemble: Any, path: str | os.PathLike, chunk_steps: int | None) -> Any:
     """The ArchiveSink of ``Ensemble.run(archive=path)``: a new archive, or this run's to append to.
 
+    A new archive keeps the run's :class:`~warpratchet.history.History` (``sink.history``, an
+    observer of the run too).
+
     An existing file is appended to only if it is an archive whose checkpoint holds exactly this
     ensemble (same step, every state array equal bit for bit): what a previous ``run(...,
     archive=path)`` of this ensemble leaves when it completes. Anything else is refused, so an
@@ -192,9 +195,10 @@ def archive_sink(ensemble: Any, path: str | os.PathLike, chunk_steps: int | None
     import numpy as np
 
     from .archive import ArchiveSink, open_archive
+    from .history import History
 
     if not os.path.lexists(path):
-        return ArchiveSink(path, ensemble, chunk_steps=chunk_steps, threshold=None)
+        return ArchiveSink(path, ensemble, chunk_steps=chunk_steps, threshold=None, history=History())
     with open_archive(path) as arc:
         state, step = arc.checkpoint()
         params = arc.params

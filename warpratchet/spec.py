@@ -35,6 +35,7 @@ from .params import MapParams
 __all__ = [
     "SAMPLERS",
     "CLASSIFIERS",
+    "THRESHOLD_RULES",
     "MAX_THREADS",
     "MAX_CHUNK_STEPS",
     "LEGACY_NAMES",
@@ -50,6 +51,10 @@ __all__ = [
 SAMPLERS = ("strip", "torus", "grid")
 #: Chaos indicators: finite-time Lyapunov exponent, MEGNO, fast Lyapunov indicator (sumrule).
 CLASSIFIERS = ("ftle", "megno", "fli")
+#: How the FTLE threshold depends on n when no ``threshold`` is given: ``strict`` = 10 (1 + ln n)/n
+#: (the default), ``positive`` = (1 + ln n)/n (the paper's Fig. 9 ensemble with ``init="torus"``).
+#: The factors are :data:`warpratchet.observables.THRESHOLD_RULES`.
+THRESHOLD_RULES = ("strict", "positive")
 #: Upper bound of ``threads``. Each thread is a Python thread with its own shard and stack; more
 #: threads than cores buy nothing, and no single machine today has 4096 hardware threads. Without
 #: a bound, ``threads = 10**9`` ran for 75 s and took 15.8 GB before failing (issue 13).
@@ -146,6 +151,15 @@ _SETTINGS: dict[str, tuple[Any, Setting]] = {
             optional=True,
         ),
     ),
+    "threshold_rule": (
+        "strict",
+        Setting(
+            "FTLE threshold when --threshold is not given: strict = 10 (1 + ln n)/n, positive = "
+            "(1 + ln n)/n (the paper's Fig. 9 ensemble, with --init torus)",
+            str,
+            choices=THRESHOLD_RULES,
+        ),
+    ),
     "threads": (
         None,
         Setting(
@@ -193,6 +207,12 @@ class _Spec:
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             object.__setattr__(self, f.name, check_setting(f.name, getattr(self, f.name)))
+        rule = getattr(self, "threshold_rule", "strict")
+        if getattr(self, "threshold", None) is not None and rule != "strict":
+            raise ParameterError(
+                f"threshold = {self.threshold!r} and threshold_rule = {rule!r} both given; a threshold "
+                "replaces the rule (give one of them)"
+            )
 
     def as_dict(self) -> dict[str, Any]:
         """Every setting as a plain Python value (``None`` for a run-dependent default)."""
@@ -292,7 +312,11 @@ class RunSpec(_Spec):
         used by the sum-rule census).
     threshold : float or None
         Indicator value above which a point counts as chaotic, ``>= 0``; ``None``: the
-        indicator's default (for the FTLE, per iteration, ``10 (1 + ln n)/n``).
+        indicator's default (for the FTLE, per iteration, the rule ``threshold_rule``).
+    threshold_rule : str
+        The FTLE threshold when ``threshold`` is None, one of :data:`THRESHOLD_RULES`:
+        ``"strict"`` (default) ``10 (1 + ln n)/n``, ``"positive"`` ``(1 + ln n)/n``
+        (:func:`warpratchet.observables.lyapunov_threshold`). Not both with a ``threshold``.
     threads : int or None
         CPU threads, ``1..MAX_THREADS``; ``None``: one per core. Results do not depend on it.
     device : str
@@ -317,6 +341,7 @@ class RunSpec(_Spec):
     steps: int = _field("steps")
     classifier: str = _field("classifier")
     threshold: float | None = _field("threshold")
+    threshold_rule: str = _field("threshold_rule")
     threads: int | None = _field("threads")
     device: str = _field("device")
     chunk_steps: int | None = _field("chunk_steps")
@@ -337,9 +362,10 @@ class SweepSpec(_Spec):
 
     The fields are RunSpec's (same names, defaults, ranges): ``points``, ``steps``, ``init``,
     ``seed`` (the root seed: point ``i`` uses :func:`warpratchet.sweep.point_seed`
-    ``(seed, i)``) and ``threshold``. The map varies from point to point, and threads never
-    change a row, so neither is part of a sweep's identity (a sweep file stores this spec and
-    resumes only the same one).
+    ``(seed, i)``), ``threshold`` and ``threshold_rule`` (a sweep file written before the rule
+    existed stores none: it is the default, ``"strict"``). The map varies from point to point,
+    and threads never change a row, so neither is part of a sweep's identity (a sweep file
+    stores this spec and resumes only the same one).
     """
 
     points: int = _field("points")
@@ -347,6 +373,7 @@ class SweepSpec(_Spec):
     init: str = _field("init")
     seed: int = _field("seed")
     threshold: float | None = _field("threshold")
+    threshold_rule: str = _field("threshold_rule")
 
     def at(self, params: MapParams, seed: int, threads: int | None = None) -> RunSpec:
         """The :class:`RunSpec` of one point: this spec at ``params`` with the point's own ``seed``."""
@@ -359,5 +386,6 @@ class SweepSpec(_Spec):
             seed=seed,
             steps=self.steps,
             threshold=self.threshold,
+            threshold_rule=self.threshold_rule,
             threads=threads,
         )

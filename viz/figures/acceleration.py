@@ -31,19 +31,21 @@ def _dense_along_path(b2: np.ndarray, sigma: np.ndarray, samples: int = 300) -> 
     return fine, np.interp(fine, b2, sigma)
 
 
-def _numeric_points(ax, sigma, a, err, label: str) -> None:
+def _numeric_points(
+    ax, sigma, a, err, label: str, color: str = "black", marker: str = "o", ms: float = 5
+) -> None:
     ax.errorbar(
         sigma,
         a,
         yerr=err,
-        fmt="o",
+        fmt=marker,
         mfc="none",
-        mec="black",
-        ecolor="black",
-        ms=5,
+        mec=color,
+        ecolor=color,
+        ms=ms,
         lw=0.8,
         label=label,
-        zorder=3,
+        zorder=3 if color == "black" else 2,
     )
 
 
@@ -158,6 +160,12 @@ def fig8(ctx: Context) -> None:
     )
 
 
+def _error(rows: list[dict]) -> np.ndarray:
+    """Error bars: the robust standard error where the sweep has one, never below the plain one."""
+    plain, robust = _columns(rows, "A_stderr", "A_stderr_robust")
+    return np.fmax(plain, robust)  # fmax: a NaN robust error (older sweep files) leaves the plain one
+
+
 def fig9(ctx: Context) -> None:
     s = ctx.settings
     path = paper.FIG9
@@ -166,18 +174,48 @@ def fig9(ctx: Context) -> None:
     def closed(b2: float) -> float:  # the paper's solid line: Eq. (Ab) at K = 3, not at the path's K
         return theory.acceleration(point_on(path, b2, K=paper.K3))
 
-    _, sigma = _a_against_sigma(
-        ctx, ax, "fig9", {"Eq. (Ab) at $K=3$": (closed, SOLID)}, rf"numerics at $K={path.K}$"
+    # Both ensembles at the sigma of the paper's (the abscissa the caption's range refers to).
+    paper_rows, strip_rows = ctx.sweep("fig9_paper"), ctx.sweep("fig9")
+    b2, sigma, a = _columns(paper_rows, "b2", "lyapunov", "A")
+    fine, fine_sigma = _dense_along_path(b2, sigma)
+    ax.plot(fine_sigma, [closed(v) for v in fine], label="Eq. (Ab) at $K=3$", **SOLID)
+    strip_b2, strip_a = _columns(strip_rows, "b2", "A")
+    _numeric_points(
+        ax,
+        np.interp(strip_b2, b2, sigma),
+        strip_a,
+        _error(strip_rows),
+        r"strip B (FTLE $>10(1+\ln n)/n$), at the same $b_2$",
+        color="gray",
+        marker="s",
+        ms=4,
     )
+    _numeric_points(
+        ax, sigma, a, _error(paper_rows), rf"torus, FTLE $>(1+\ln n)/n$ (the paper's), $K={path.K}$"
+    )
+    # Points whose A_n still drifts between n/2 and n, either ensemble (their verdict).
+    strip_sigma = np.interp(strip_b2, b2, sigma)
+    cross_x, cross_y = [], []
+    for rows, x, y in ((paper_rows, sigma, a), (strip_rows, strip_sigma, strip_a)):
+        drifting = [r["verdict"] == "drifting" for r in sorted(rows, key=lambda r: r["b2"])]
+        cross_x += list(x[drifting])
+        cross_y += list(y[drifting])
+    if cross_x:
+        ax.plot(cross_x, cross_y, "x", color="C3", ms=7, label=r"drifting: $|A_n-A_{n/2}|>3$ se")
     _labels(ax, path, "upper right", rf"$K={path.K}$, $b_1={path.b1}$")
     ctx.save(
         fig,
         "fig9",
         f"""
-        Fig. 9. A against sigma at K = {path.K} on the path b1 = {path.b1}: circles, numerics as in Fig. 7
-        ({s.points} orbits, n = {s.steps}); solid, the closed form at K = 3: Eq. (Ab) while the right island
-        exists (b2 < {fig9_domain_edge(paper.K3):.4f}; the paper says the whole path is in domain R) and A = 0
-        beyond. Measured sigma range: {sigma.min():.4f} to {sigma.max():.4f} (the paper: {paper.FIG9_SIGMA[0]}
-        < sigma < {paper.FIG9_SIGMA[1]}).
+        Fig. 9. A against sigma at K = {path.K} on the path b1 = {path.b1}. Circles: the paper's
+        ensemble, {s.points} initial conditions uniform on the torus, chaotic when the FTLE exceeds
+        (1 + ln n)/n, n = {s.steps}; sigma is their mean FTLE, {sigma.min():.4f} to {sigma.max():.4f}
+        (the paper: {paper.FIG9_SIGMA[0]} < sigma < {paper.FIG9_SIGMA[1]}). Squares: A of the strip
+        ensemble of Figs. 7-8 at the same b2 (it leaves out orbits locked to the normal island, which
+        the paper's ensemble counts at A ~ 0). Error bars: the robust standard error (batch means over
+        time). Crosses: points whose A still drifts between n/2 and n by more than 3 standard errors
+        ({len(cross_x)} of them).
+        Solid: the closed form at K = 3, Eq. (Ab) while the right island exists (b2 <
+        {fig9_domain_edge(paper.K3):.4f}; the paper says the whole path is in domain R) and A = 0 beyond.
         """,
     )

@@ -20,8 +20,12 @@ from ..paths import path_points
 
 __all__ = ["SWEEP_NAMES", "Settings", "settings_for", "grid_axis", "sweep_points", "load_or_run_sweep"]
 
-#: Sweep files, in the order they are run (names of ``<sweeps>/<name>.h5``).
-SWEEP_NAMES = ("fig7", "fig7_inset", "fig8", "fig9", "fig6")
+#: Sweep files, in the order they are run (names of ``<sweeps>/<name>.h5``). ``fig9`` is the
+#: strip ensemble of Figs. 7-8 on Fig. 9's path, ``fig9_paper`` the paper's ensemble there
+#: (:data:`warpratchet.paper.FIG9_ENSEMBLE`).
+SWEEP_NAMES = ("fig7", "fig7_inset", "fig8", "fig9", "fig9_paper", "fig6")
+#: Sweeps on a path of :data:`warpratchet.paper.PATHS` under another name: name -> path name.
+PATH_OF = {"fig9_paper": "fig9"}
 
 
 @dataclass(frozen=True)
@@ -78,12 +82,13 @@ def grid_axis(s: Settings) -> np.ndarray:
 def sweep_points(name: str, s: Settings) -> list[MapParams]:
     """Parameter points of one sweep, from the constructors of :mod:`warpratchet.sweep`.
 
-    ``fig7``/``fig7_inset``: the maximal path, Eq. (b2max); ``fig8``: ``b1 = 3 b2``; ``fig9``:
-    ``K = 2.99, b1 = 0.25``; ``fig6``: the whole grid (every domain, Fig. 6 covers the plane).
+    ``fig7``/``fig7_inset``: the maximal path, Eq. (b2max); ``fig8``: ``b1 = 3 b2``; ``fig9`` and
+    ``fig9_paper``: ``K = 2.99, b1 = 0.25``; ``fig6``: the whole grid (every domain, Fig. 6 covers the plane).
     """
-    if name in paper.PATHS:
-        path = paper.PATHS[name]
-        return path_points(path, path.b2_values(s.path_counts[name]))
+    if name in paper.PATHS or name in PATH_OF:
+        key = PATH_OF.get(name, name)
+        path = paper.PATHS[key]
+        return path_points(path, path.b2_values(s.path_counts[key]))
     if name == "fig6":
         axis = grid_axis(s)
         return grid_points(axis, axis, K=paper.K3, domain=None)
@@ -93,6 +98,8 @@ def sweep_points(name: str, s: Settings) -> list[MapParams]:
 def _sweep_spec(name: str, s: Settings) -> SweepSpec:
     if name == "fig6":
         return SweepSpec(points=s.grid_points, steps=s.grid_steps, init=paper.SAMPLER, seed=0)
+    if name == "fig9_paper":
+        return SweepSpec(points=s.points, steps=s.steps, seed=0, **paper.FIG9_ENSEMBLE)
     return SweepSpec(points=s.points, steps=s.steps, init=paper.SAMPLER, seed=0)
 
 

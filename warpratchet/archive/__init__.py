@@ -11,8 +11,12 @@ One idea per module:
 * :mod:`.names`: what an archive contains (format and versions, names, units; the errors);
 * :mod:`.layout`: building it (settings attributes, every dataset up front);
 * :mod:`.rows`: appending rows behind a live counter;
+* :mod:`.building`: a file made under a temporary name and published atomically;
+* :mod:`.slots`: the two checkpoint slots (crash-safe writes, sequence-locked reads);
+* :mod:`.snapshots`: the ``/snapshots`` subsample, :class:`Snapshots`;
+* :mod:`.history_group`: the optional ``/history`` group (feature ``history``);
 * :mod:`.writer`: :class:`ArchiveSink`, the observer that writes it;
-* :mod:`.reader`: :func:`open_archive`, :class:`Archive`, :class:`Snapshots`;
+* :mod:`.reader`: :func:`open_archive`, :class:`Archive`;
 * :mod:`.progress`: percentage done and ETA of ``inspect``;
 * :mod:`.export`: ``Archive.to_pandas()`` and ``Archive.to_xarray()``;
 * :mod:`.verify`: :func:`verify_archive`, every checksum and value of a file (``warpratchet verify``);

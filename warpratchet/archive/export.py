@@ -10,6 +10,9 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
+
+from ..history import HISTORY_FIELDS
 from ..spec import attr_value
 from .names import SERIES_FIELDS, SNAPSHOT_FIELDS, describe
 
@@ -32,13 +35,26 @@ def attributes(arc, group: str, name: str) -> dict[str, str]:
     return {"units": units, "long_name": long_name}
 
 
-def series_frame(arc):
-    """``arc.series`` as a DataFrame indexed by ``step``; ``frame.attrs`` holds units and long names."""
+def _rows(arc, group: str) -> tuple[dict, tuple[str, ...]]:
+    """The rows of ``series`` or ``history`` and their field names (``step`` first)."""
+    if group == "series":
+        return arc.series, SERIES_FIELDS
+    if group == "history":
+        history = arc.history
+        if history is None:
+            raise ValueError(f"{arc.path} has no history (its features: {', '.join(arc.features) or 'none'})")
+        return {k: np.asarray(v) for k, v in history.rows.items()}, HISTORY_FIELDS
+    raise ValueError(f"group = {group!r} is not 'series' or 'history'")
+
+
+def series_frame(arc, group: str = "series"):
+    """``arc.series`` (or the history rows) as a DataFrame indexed by ``step``; ``frame.attrs`` holds
+    units and long names."""
     pd = _need("pandas")
-    series = arc.series
-    frame = pd.DataFrame({name: series[name] for name in SERIES_FIELDS[1:]}, index=series["step"])
+    series, fields = _rows(arc, group)
+    frame = pd.DataFrame({name: series[name] for name in fields[1:]}, index=series["step"])
     frame.index.name = "step"
-    described = {name: attributes(arc, "series", name) for name in SERIES_FIELDS}
+    described = {name: attributes(arc, group, name) for name in fields}
     frame.attrs = {
         "units": {name: d["units"] for name, d in described.items()},
         "long_name": {name: d["long_name"] for name, d in described.items()},
@@ -48,7 +64,8 @@ def series_frame(arc):
 
 
 def dataset(arc, group: str = "series"):
-    """``/series`` (dimension ``step``) or ``/snapshots`` (dimensions ``step``, ``point``) as a Dataset."""
+    """``/series`` (dimension ``step``), ``/snapshots`` (``step``, ``point``) or ``/history`` (``step``;
+    block gains on ``block_step``, ``block_point``) as a Dataset."""
     xr = _need("xarray")
     attrs = {"path": arc.path, **{k: v for k, v in arc.params.as_dict().items()}}
     if group == "series":
@@ -67,4 +84,31 @@ def dataset(arc, group: str = "series"):
             for name in SNAPSHOT_FIELDS
         }
         return xr.Dataset(data, coords=coords, attrs=attrs)
-    raise ValueError(f"group = {group!r} is not 'series' or 'snapshots'")
+    if group == "history":
+        history = arc.history
+        if history is None:
+            raise ValueError(f"{arc.path} has no history (its features: {', '.join(arc.features) or 'none'})")
+        rows, blocks = history.rows, history.block_rows
+        coords = {
+            "step": ("step", np.asarray(rows["step"]), attributes(arc, "history", "step")),
+            "block_step": (
+                "block_step",
+                np.asarray(blocks["block_step"]),
+                attributes(arc, "history", "block_step"),
+            ),
+            "block_point": (
+                "block_point",
+                np.asarray(history.block_indices),
+                attributes(arc, "history", "block_indices"),
+            ),
+        }
+        width = len(history.block_indices)
+        data = {
+            name: ("step", np.asarray(rows[name]), attributes(arc, "history", name))
+            for name in HISTORY_FIELDS[1:]
+        }
+        for name in ("block_gain", "block_ftle"):
+            values = np.asarray(blocks[name], dtype=np.float64).reshape(len(blocks["block_step"]), width)
+            data[name] = (("block_step", "block_point"), values, attributes(arc, "history", name))
+        return xr.Dataset(data, coords=coords, attrs=attrs)
+    raise ValueError(f"group = {group!r} is not 'series', 'snapshots' or 'history'")

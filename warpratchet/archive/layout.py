@@ -33,6 +33,7 @@ from .names import (
     COUNTERS,
     FORMAT,
     FORMAT_VERSION,
+    HISTORY_COUNTERS,
     INT_SERIES,
     SERIES_FIELDS,
     SLOTS,
@@ -53,7 +54,19 @@ __all__ = [
 
 #: The RunSpec settings an archive stores (``steps`` is progress, ``/progress/target_step``:
 #: a resume moves it).
-RUN_SETTINGS = ("K", "b1", "b2", "init", "points", "seed", "classifier", "threshold", "threads", "device")
+RUN_SETTINGS = (
+    "K",
+    "b1",
+    "b2",
+    "init",
+    "points",
+    "seed",
+    "classifier",
+    "threshold",
+    "threshold_rule",
+    "threads",
+    "device",
+)
 #: The archive's own settings besides ``chunk_steps`` (a RunSpec setting) and the kernel's.
 ARCHIVE_SETTINGS = ("chunk_steps", "checkpoint_every", "snapshot_every", "snapshot_points")
 
@@ -92,6 +105,7 @@ def run_settings(
     ensemble: Any,
     *,
     threshold: float | None,
+    threshold_rule: str = "strict",
     chunk_steps: int,
     checkpoint_every: int,
     snapshot_every: int,
@@ -108,6 +122,7 @@ def run_settings(
         "seed": ensemble.seed,
         "classifier": "ftle",
         "threshold": threshold,
+        "threshold_rule": threshold_rule,
         "threads": ensemble.threads,
         "device": ensemble.device,
         "chunk_steps": chunk_steps,
@@ -130,6 +145,7 @@ def read_settings(attrs: h5py.AttributeManager, version: int) -> dict[str, Any]:
         if isinstance(settings.get("threshold"), float) and math.isnan(settings["threshold"]):
             settings["threshold"] = None
         settings.setdefault("classifier", "ftle")
+    settings.setdefault("threshold_rule", "strict")  # archives written before the rule existed
     for name in RUN_SETTINGS + ARCHIVE_SETTINGS:
         settings.setdefault(name, None)
     return settings
@@ -174,80 +190,124 @@ def create(
     initial_step: int,
     indices: np.ndarray,
     target_step: int = -1,
+    history: Any = None,
 ) -> None:
     """Create the whole layout of ``docs/archive.md`` in ``f`` (SWMR allows no new objects later).
 
     ``settings`` are the settings under RunSpec's names (:func:`read_settings`' form; stored
     with :func:`settings_attrs`), ``initial`` the state at ``initial_step`` (keys
     ``STATE_FIELDS``), ``indices`` the snapshot subsample ``(M,)``. Series and snapshots start
-    empty, both checkpoint slots unused.
+    empty, both checkpoint slots unused. With a ``history`` (a
+    :class:`~warpratchet.history.History` whose block subsample is chosen) the optional group
+    ``/history`` is created too, empty, and listed in ``/@features``.
     """
     n = int(settings["points"])
     m = int(indices.size)
     _set_attrs(f, {"format": FORMAT, "format_version": FORMAT_VERSION, "created": created})
-    f.attrs["features"] = np.bytes_(b",".join(()))  # none yet (names.KNOWN_FEATURES)
+    features = ["history"] if history is not None else []
+    f.attrs["features"] = np.bytes_(",".join(features).encode())  # names.KNOWN_FEATURES
     _set_attrs(_group(f, "params"), params.as_dict())
     _set_attrs(_group(f, "settings"), settings_attrs(settings))
     _set_attrs(_group(f, "versions"), versions)
 
-    def dataset(group: h5py.Group, name: str, **kw: Any) -> h5py.Dataset:
-        ds = group.create_dataset(name, fletcher32=True, **kw)
-        units, long_name = describe(group.name.lstrip("/"), name)
-        _set_attrs(ds, {"units": units, "long_name": long_name})
-        return ds
-
-    def state_dataset(group: h5py.Group, name: str, fill: float | int | None = None) -> h5py.Dataset:
-        dtype = np.int64 if name == "winding" else np.float64
-        kw = {} if fill is None else {"fillvalue": dtype(fill)}
-        return dataset(group, name, shape=(n,), dtype=dtype, chunks=(min(n, STATE_CHUNK),), **kw)
-
-    def counter(group: h5py.Group, name: str, value: int) -> None:
-        # Mutable scalars are (1,) chunked datasets: checksummed, and writable under SWMR.
-        dataset(group, name, data=np.array([value], np.int64), chunks=(1,))
-
-    def rows(group: h5py.Group, name: str, dtype: Any, width: int | None = None) -> h5py.Dataset:
-        if width is None:
-            return dataset(group, name, shape=(0,), maxshape=(None,), chunks=(ROW_CHUNK,), dtype=dtype)
-        chunks = (1, max(1, min(width, STATE_CHUNK)))
-        return dataset(group, name, shape=(0, width), maxshape=(None, None), chunks=chunks, dtype=dtype)
-
     g = _group(f, "initial")
     _set_attrs(g, {"step": int(initial_step)})
     for name in STATE_FIELDS:
-        ds = state_dataset(g, name, FILL[name])
+        ds = _state_dataset(g, name, n, FILL[name])
         values = np.asarray(initial[name])
         if np.any(values != FILL[name]):  # a uniform field stays a fill value, no storage
             ds.write_direct(np.ascontiguousarray(values, dtype=ds.dtype))
 
     g = _group(f, "series")
-    scale = rows(g, "step", np.int64)
+    scale = _rows(g, "step", np.int64)
     scale.make_scale("step")
     for name in SERIES_FIELDS[1:]:
-        rows(g, name, np.int64 if name in INT_SERIES else np.float64).dims[0].attach_scale(scale)
+        _rows(g, name, np.int64 if name in INT_SERIES else np.float64).dims[0].attach_scale(scale)
 
     g = _group(f, "snapshots")
     width = max(1, min(m, STATE_CHUNK))
-    points = dataset(g, "indices", data=indices.astype(np.int64), maxshape=(None,), chunks=(width,))
+    points = _dataset(g, "indices", data=indices.astype(np.int64), maxshape=(None,), chunks=(width,))
     # A dimension scale, so that netCDF readers name the axis instead of inventing a phony one.
     points.make_scale("point")
-    scale = rows(g, "step", np.int64)
+    scale = _rows(g, "step", np.int64)
     scale.make_scale("step")
     for name in SNAPSHOT_FIELDS:
-        ds = rows(g, name, np.float64, m)
+        ds = _rows(g, name, np.float64, m)
         ds.dims[0].attach_scale(scale)
         ds.dims[1].attach_scale(points)
 
     g = _group(f, "progress")
     for key, path in COUNTERS[FORMAT_VERSION].items():
-        counter(g, path.split("/")[1], target_step if key == "target" else 0)
+        _counter(g, path.split("/")[1], target_step if key == "target" else 0)
 
     g = _group(f, "checkpoint")
-    counter(g, "current", -1)
+    _counter(g, "current", -1)
     for slot in SLOTS:
         s = _group(g, slot)
-        counter(s, "step", -1)
+        _counter(s, "step", -1)
         for name in STATE_FIELDS:
-            state_dataset(s, name)
+            _state_dataset(s, name, n)
+
+    if history is not None:
+        _history_group(f, history)
+
+
+def _history_group(f: h5py.File, history: Any) -> None:
+    """``/history`` (feature ``history``) for a :class:`~warpratchet.history.History`, and its counters.
+
+    Rows (dimension ``step``) and block records (dimensions ``block_step``, ``block_point``)
+    start empty; the history's settings (rows per decade, blocks, block subsample size) are
+    attributes of the group; the subsample's indices are ``block_indices``.
+    """
+    from ..history import HISTORY_FIELDS, INT_FIELDS
+
+    indices = np.asarray(history.block_indices, dtype=np.int64)
+    m = int(indices.size)
+    g = _group(f, "history")
+    _set_attrs(g, {"per_decade": history.per_decade, "blocks": history.blocks, "block_points": m})
+    scale = _rows(g, "step", np.int64)
+    scale.make_scale("step")
+    for name in HISTORY_FIELDS[1:]:
+        _rows(g, name, np.int64 if name in INT_FIELDS else np.float64).dims[0].attach_scale(scale)
+    width = max(1, min(m, STATE_CHUNK))
+    points = _dataset(g, "block_indices", data=indices, maxshape=(None,), chunks=(width,))
+    points.make_scale("block_point")
+    scale = _rows(g, "block_step", np.int64)
+    scale.make_scale("block_step")
+    for name in ("block_gain", "block_ftle"):
+        ds = _rows(g, name, np.float64, m)
+        ds.dims[0].attach_scale(scale)
+        ds.dims[1].attach_scale(points)
+    progress = f["progress"]
+    for path in HISTORY_COUNTERS.values():
+        _counter(progress, path.split("/")[1], 0)
+
+
+def _dataset(group: h5py.Group, name: str, **kw: Any) -> h5py.Dataset:
+    """A chunked, checksummed dataset with the ``units`` and ``long_name`` of :func:`.names.describe`."""
+    ds = group.create_dataset(name, fletcher32=True, **kw)
+    units, long_name = describe(group.name.lstrip("/"), name)
+    _set_attrs(ds, {"units": units, "long_name": long_name})
+    return ds
+
+
+def _state_dataset(group: h5py.Group, name: str, n: int, fill: float | int | None = None) -> h5py.Dataset:
+    dtype = np.int64 if name == "winding" else np.float64
+    kw = {} if fill is None else {"fillvalue": dtype(fill)}
+    return _dataset(group, name, shape=(n,), dtype=dtype, chunks=(min(n, STATE_CHUNK),), **kw)
+
+
+def _counter(group: h5py.Group, name: str, value: int) -> None:
+    # Mutable scalars are (1,) chunked datasets: checksummed, and writable under SWMR.
+    _dataset(group, name, data=np.array([value], np.int64), chunks=(1,))
+
+
+def _rows(group: h5py.Group, name: str, dtype: Any, width: int | None = None) -> h5py.Dataset:
+    """An empty, growable dataset of rows (``(0,)``, or ``(0, width)`` for per-point rows)."""
+    if width is None:
+        return _dataset(group, name, shape=(0,), maxshape=(None,), chunks=(ROW_CHUNK,), dtype=dtype)
+    chunks = (1, max(1, min(width, STATE_CHUNK)))
+    return _dataset(group, name, shape=(0, width), maxshape=(None, None), chunks=chunks, dtype=dtype)
 
 
 def _group(parent: h5py.Group, name: str) -> h5py.Group:

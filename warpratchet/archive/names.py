@@ -28,6 +28,7 @@ __all__ = [
     "SNAPSHOT_FIELDS",
     "SLOTS",
     "COUNTERS",
+    "HISTORY_COUNTERS",
     "KNOWN_FEATURES",
     "DESCRIPTIONS",
     "describe",
@@ -74,13 +75,17 @@ COUNTERS = {
     },
 }
 
+#: The live counters of the optional ``/history`` group (feature ``history``): valid rows and
+#: valid block records, raised after them like the others.
+HISTORY_COUNTERS = {"rows": "progress/history_rows", "blocks": "progress/block_rows"}
+
 #: Optional groups a later release may add without a new major version, as named in the root
 #: attribute ``features`` (a comma-separated list, empty for none). A reader ignores groups it
 #: does not know and reads a feature only when it is listed; a change that an older reader would
 #: misread (a renamed or reinterpreted dataset) bumps ``format_version`` instead.
 KNOWN_FEATURES = {
     "history": "/history: log-spaced rows of A_n, its standard error, sigma, the chaotic fraction "
-    "and variances (issue 15)",
+    "and variances, and block gains of a subsample (issue 15)",
     "transport": "/transport: momentum histograms (issue 16)",
 }
 
@@ -118,6 +123,20 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "progress/series_rows": ("1", "valid rows of /series (raised after they are on disk)"),
     "progress/snapshot_rows": ("1", "valid snapshots of /snapshots (raised after they are on disk)"),
     "progress/target_step": ("iteration", "step the last run session aims at; -1 before the first"),
+    "progress/history_rows": ("1", "valid rows of /history (raised after they are on disk)"),
+    "progress/block_rows": ("1", "valid block records of /history (raised after they are on disk)"),
+    "history/step": ("iteration", "step n of the history row"),
+    "history/A": ("1/iteration", "mean acceleration A_n of Eq. (An) over chaotic points at n"),
+    "history/A_stderr": ("1/iteration", "standard error of A: std / sqrt(chaotic points)"),
+    "history/sigma": ("1/iteration", "mean finite-time Lyapunov exponent of chaotic points at n"),
+    "history/chaotic_fraction": ("1", "fraction of points chaotic at n"),
+    "history/chaotic_points": ("1", "number of points chaotic at n"),
+    "history/var_dp_all": ("1", "variance of p_n - p_0 over all points"),
+    "history/var_dp_chaotic": ("1", "variance of p_n - p_0 over the chaotic points"),
+    "history/block_step": ("iteration", "end of a time block, floor(target j / blocks)"),
+    "history/block_indices": ("1", "sorted indices of the block subsample's points in the ensemble"),
+    "history/block_gain": ("1", "p_n - p_0 of each subsample point at the block end"),
+    "history/block_ftle": ("1/iteration", "finite-time Lyapunov exponent of each subsample point"),
     "checkpoint/current": ("1", "slot of the newest complete checkpoint: 0 = a, 1 = b, -1 none"),
     "checkpoint/step": ("iteration", "step of the state in this slot; -1 while written or unused"),
 }

@@ -15,61 +15,33 @@ from __future__ import annotations
 
 import os
 import warnings
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from .._files import open_h5
 from .._h5verify import first_line, read_rows
-from ..ensemble import STATE_FIELDS, Ensemble
+from ..ensemble import Ensemble
+from ..history import History
 from ..params import MapParams
 from ..spec import SAMPLERS, RunSpec, attr_value
 from . import progress
-from .checks import check_extent, listed, nonfinite, reading
+from .checks import check_extent, reading
 from .checks import refresh as _refresh
+from .history_group import history_info, read_history
 from .layout import read_settings
 from .names import (
     COUNTERS,
     FORMAT,
     READABLE_VERSIONS,
     SERIES_FIELDS,
-    SLOTS,
-    SNAPSHOT_FIELDS,
     ArchiveError,
     ArchiveWarning,
 )
+from .slots import newest_good, read_state, slot_step, slot_steps
+from .snapshots import Snapshots, read_snapshots
 
 __all__ = ["Snapshots", "Archive", "open_archive"]
-
-
-@dataclass(frozen=True)
-class Snapshots:
-    """Phase-space snapshots of a fixed random subsample of ``M`` points.
-
-    Attributes
-    ----------
-    steps : ndarray, shape (S,), int64
-        Iteration numbers of the snapshots.
-    indices : ndarray, shape (M,), int64
-        Indices of the sampled points in the ensemble (sorted).
-    x, p : ndarray, shape (S, M)
-        Position and momentum mod 1, both in ``[0, 1)`` (Eq. cpem on the torus).
-    ftle : ndarray, shape (S, M)
-        Finite-time Lyapunov exponent per iteration.
-    A : ndarray, shape (S, M)
-        Mean acceleration ``A_n`` of Eq. (An), per iteration.
-    """
-
-    steps: np.ndarray
-    indices: np.ndarray
-    x: np.ndarray
-    p: np.ndarray
-    ftle: np.ndarray
-    A: np.ndarray
-
-    def __len__(self) -> int:
-        return int(self.steps.size)
 
 
 class Archive:
@@ -193,49 +165,14 @@ class Archive:
     @property
     def snapshots(self) -> Snapshots:
         """Snapshots recorded so far (``S`` may be 0); see :class:`Snapshots`."""
-        n = self.snapshot_count
-        with reading(self.path, "/snapshots"):
-            g = self._file["snapshots"]
-            indices = _refresh(g["indices"])[:]
-            steps = _refresh(g["step"])
-            if steps.shape[0] < n:
-                raise ArchiveError(f"{self.path}: /snapshots/step has {steps.shape[0]} rows, {n} are valid")
-            check_extent(self.path, g["indices"])
-            check_extent(self.path, steps, n)
-            fields = {"steps": read_rows(steps, n), "indices": indices}
-            for name in SNAPSHOT_FIELDS:
-                ds = _refresh(g[name])
-                check_extent(self.path, ds, n)
-                if ds.shape[0] < n or (n and ds.shape[1] != indices.size):
-                    raise ArchiveError(
-                        f"{self.path}: /snapshots/{name} has shape {ds.shape}, expected ({n}, M)"
-                    )
-                fields[name] = read_rows(ds, n).reshape(n, indices.size)
-        return Snapshots(**fields)
+        return read_snapshots(self.path, self._file, self.snapshot_count)
 
     def _slot_step(self, name: str) -> int:
-        with reading(self.path, f"/checkpoint/{name}/step"):
-            ds = _refresh(self._file["checkpoint"][name]["step"])
-            check_extent(self.path, ds)
-            return int(ds[0])
+        return slot_step(self.path, self._file, name)
 
     def _slot_steps(self, problems: list[str] | None = None) -> list[tuple[int, str]]:
-        """Complete slots as ``(step, name)``, newest first (``step`` -1 marks a slot in progress).
-
-        An unreadable slot raises, or is skipped and described in ``problems`` if given.
-        """
-        out = []
-        for name in SLOTS:
-            try:
-                step = self._slot_step(name)
-            except ArchiveError as exc:
-                if problems is None:
-                    raise
-                problems.append(f"checkpoint slot {name!r} is unreadable ({exc})")
-                continue
-            if step >= 0:
-                out.append((step, name))
-        return sorted(out, reverse=True)
+        """Complete slots as ``(step, name)``, newest first (:func:`.slots.slot_steps`)."""
+        return slot_steps(self.path, self._file, problems)
 
     @property
     def checkpoint_step(self) -> int:
@@ -249,17 +186,7 @@ class Archive:
 
     def read_state(self, group: str) -> dict[str, np.ndarray]:
         """The per-point state stored in ``group`` (``"initial"``, ``"checkpoint/a"``, ...), unchecked."""
-        state = {}
-        for name in STATE_FIELDS:
-            with reading(self.path, f"/{group}/{name}"):
-                ds = _refresh(self._file[group][name])
-                if ds.shape != (self.points,):
-                    raise ArchiveError(
-                        f"{self.path}: /{group}/{name} has shape {ds.shape}, expected ({self.points},)"
-                    )
-                check_extent(self.path, ds)
-                state[name] = ds[:]
-        return state
+        return read_state(self.path, self._file, group, self.points)
 
     @property
     def initial(self) -> dict[str, np.ndarray]:
@@ -274,39 +201,10 @@ class Archive:
         an :class:`ArchiveWarning` naming what was recovered instead. A slot the live writer
         recycles while it is read is read again, never reported as damaged.
         """
-        problems: list[str] = []
-        for _attempt in range(10):
-            problems.clear()
-            retry = False
-            for step, name in self._slot_steps(problems):
-                try:
-                    state = self.read_state(f"checkpoint/{name}")
-                except ArchiveError as exc:
-                    try:
-                        again = self._slot_step(name)
-                    except ArchiveError:
-                        again = step
-                    if again != step:  # recycled meanwhile: a torn read, not damage
-                        retry = True
-                        break
-                    problems.append(f"checkpoint at step {step} is unreadable ({exc})")
-                    continue
-                try:
-                    again = self._slot_step(name)
-                except ArchiveError as exc:
-                    problems.append(f"checkpoint at step {step} is unreadable ({exc})")
-                    continue
-                if again != step:  # overwritten while we read: start over
-                    retry = True
-                    break
-                bad = nonfinite(state)
-                if bad:
-                    problems.append(f"checkpoint at step {step} holds non-finite values ({listed(bad)})")
-                    continue
-                self._warn(problems, f"recovered the checkpoint at step {step}")
-                return state, step
-            if not retry:
-                break
+        found, problems = newest_good(self.path, self._file, self.points)
+        if found is not None:
+            self._warn(problems, f"recovered the checkpoint at step {found[1]}")
+            return found
         state = self.initial
         if problems:
             self._warn(problems, f"recovered the initial state at step {self.initial_step}")
@@ -335,6 +233,18 @@ class Archive:
         state, step = self.checkpoint()
         return self.restore(state, step, threads, device)
 
+    @property
+    def history(self) -> History | None:
+        """The run's :class:`~warpratchet.history.History` (feature ``history``; None without one).
+
+        Its valid rows and block records, read afresh (a run may still be writing them):
+        ``history.as_dict()`` (rows as lists), ``history.convergence()`` (the verdict at the last
+        row), ``history.block_rows``.
+        """
+        if "history" not in self.features:
+            return None
+        return read_history(self.path, self._file, self.settings)
+
     def latest(self) -> dict[str, float | int] | None:
         """The last series row as a dict (None before the first chunk)."""
         return _last_row(self.series)
@@ -357,19 +267,22 @@ class Archive:
             "rows": int(series["step"].size),
             "snapshots": self.snapshot_count,
             "latest": _last_row(series),
+            "history": history_info(self.history),
             **progress.estimate(series, self.target_step, self.initial_step),
         }
 
     # -- exports ----------------------------------------------------------------------------------
-    def to_pandas(self):
-        """``series`` as a ``pandas.DataFrame`` indexed by ``step`` (needs ``warpratchet[xarray]``)."""
+    def to_pandas(self, group: str = "series"):
+        """``series`` (or the ``history`` rows) as a ``pandas.DataFrame`` indexed by ``step`` (needs
+        ``warpratchet[xarray]``)."""
         from .export import series_frame
 
-        return series_frame(self)
+        return series_frame(self, group)
 
     def to_xarray(self, group: str = "series"):
-        """``series`` (dimension ``step``) or ``snapshots`` (``step``, ``point``) as an
-        ``xarray.Dataset`` with units and long names (needs ``warpratchet[xarray]``)."""
+        """``series`` (dimension ``step``), ``snapshots`` (``step``, ``point``) or ``history``
+        (``step``; block gains on ``block_step``, ``block_point``) as an ``xarray.Dataset`` with
+        units and long names (needs ``warpratchet[xarray]``)."""
         from .export import dataset
 
         return dataset(self, group)

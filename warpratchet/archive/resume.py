@@ -26,8 +26,10 @@ import numpy as np
 
 from .._h5verify import read_rows
 from ..ensemble import STATE_FIELDS, Ensemble
+from ..history import BLOCK_FIELDS, HISTORY_FIELDS, History
 from ..spec import SAMPLERS
 from .checks import reading
+from .history_group import history_counts, history_settings, write_history
 from .layout import kernel_constants
 from .names import COUNTERS, FORMAT_VERSION, SERIES_FIELDS, SNAPSHOT_FIELDS, ArchiveError, ArchiveWarning
 from .reader import Archive, Snapshots
@@ -54,6 +56,8 @@ class Salvage:
         The rows up to ``step``, keys :data:`SERIES_FIELDS`.
     snapshots : Snapshots
         The snapshots up to ``step``.
+    history : History or None
+        The ``/history`` records up to ``step`` (feature ``history``), also ``layout["history"]``.
     """
 
     ensemble: Ensemble
@@ -62,6 +66,7 @@ class Salvage:
     layout: dict[str, Any]
     series: dict[str, np.ndarray]
     snapshots: Snapshots
+    history: History | None = None
 
     @property
     def rows(self) -> int:
@@ -83,6 +88,8 @@ class Salvage:
                 g[name].resize(len(snaps), axis=0)
                 g[name][...] = snaps.steps if name == "step" else getattr(snaps, name)
         f[counters["snapshots"]][0] = len(snaps)
+        if self.history is not None:
+            write_history(f, self.history)
         if self.step != self.layout["initial_step"]:
             slot = f["checkpoint"]["a"]
             for name in STATE_FIELDS:
@@ -169,6 +176,7 @@ def salvage(path: str | os.PathLike, *, threads: int | None = None, device: str 
         )
         kept = snap_ok & (snaps["step"] <= step)
         initial, initial_step = _initial(arc, state, step, problems)
+        history = _history(arc, step, problems) if "history" in arc.features else None
         layout = {
             "params": arc.params,
             "settings": dict(s),
@@ -178,6 +186,7 @@ def salvage(path: str | os.PathLike, *, threads: int | None = None, device: str 
             "initial_step": initial_step,
             "indices": indices,
             "target_step": arc.target_step if arc.target_step is not None else -1,
+            "history": history,
         }
     if problems:
         warnings.warn(f"{path}: {'; '.join(problems)}; skipped", ArchiveWarning, stacklevel=3)
@@ -193,4 +202,22 @@ def salvage(path: str | os.PathLike, *, threads: int | None = None, device: str 
             indices=indices,
             **{name: snaps[name][kept].reshape(int(kept.sum()), width) for name in SNAPSHOT_FIELDS},
         ),
+        history=history,
+    )
+
+
+def _history(arc: Archive, step: int, problems: list[str]) -> History:
+    """The ``/history`` records up to ``step`` (damaged ones left out, like series rows)."""
+    n_rows, n_blocks = history_counts(arc.path, arc._file)
+    rows, ok = _readable_rows(arc, "history", HISTORY_FIELDS, n_rows, problems)
+    keep = ok & (rows["step"] <= step)
+    blocks, block_ok = _readable_rows(arc, "history", BLOCK_FIELDS, n_blocks, problems)
+    kept = block_ok & (blocks["block_step"] <= step)
+    with reading(arc.path, "/history/block_indices"):
+        indices = arc._file["history"]["block_indices"][:]
+    return History.restore(
+        {name: values[keep] for name, values in rows.items()},
+        {name: values[kept] for name, values in blocks.items()},
+        indices,
+        **history_settings(arc.path, arc._file, arc.settings),
     )

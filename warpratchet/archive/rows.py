@@ -1,10 +1,10 @@
-"""Append-only rows of an archive group (``/series``, ``/snapshots``) and their live counter.
+"""Append-only rows of an archive group (``/series``, ``/snapshots``, ``/history``) and their counter.
 
-:meth:`Rows.put` writes row ``count`` of every dataset (growing them :data:`ROW_CHUNK` rows at a
-time), :meth:`Rows.commit` makes it valid by raising the counter, :meth:`Rows.trim` cuts the
-datasets to the valid rows when the archive is closed (so a closed archive holds exactly its
-rows). Rows are written with low-level HDF5 calls: h5py's indexing costs ~0.2 ms per call,
-which at small chunks would dominate the kernel time.
+:meth:`Rows.put` writes the next row of every dataset (growing them :data:`ROW_CHUNK` rows at a
+time), :meth:`Rows.commit` makes the rows put since the last commit valid by raising the
+counter, :meth:`Rows.trim` cuts the datasets to the valid rows when the archive is closed (so a
+closed archive holds exactly its rows). Rows are written with low-level HDF5 calls: h5py's
+indexing costs ~0.2 ms per call, which at small chunks would dominate the kernel time.
 """
 
 from __future__ import annotations
@@ -36,10 +36,12 @@ class Rows:
         self.capacity = min(ds.shape[0] for ds in self.datasets.values())
         self.counter = counter
         self.count = count
+        self.staged = 0  # rows put since the last commit
 
     def put(self, row: dict[str, Any]) -> None:
-        if self.count >= self.capacity:
-            self.capacity = self.count + ROW_CHUNK
+        index = self.count + self.staged
+        if index >= self.capacity:
+            self.capacity = index + ROW_CHUNK
             for ds in self.datasets.values():
                 ds.resize(self.capacity, axis=0)
         for name, value in row.items():
@@ -47,19 +49,25 @@ class Rows:
             values = np.ascontiguousarray(value, dtype=self.dtypes[name]).reshape(shape)
             ds = self.datasets[name]
             space = ds.id.get_space()
-            space.select_hyperslab((self.count,) + (0,) * (len(shape) - 1), shape)
+            space.select_hyperslab((index,) + (0,) * (len(shape) - 1), shape)
             ds.id.write(h5s.create_simple(shape), space, values)
+        self.staged += 1
 
-    def growth_bytes(self) -> int:
-        """Bytes of new chunks the next :meth:`put` allocates (HDF5 allocates a chunk at its first write)."""
+    def growth_bytes(self, rows: int = 1) -> int:
+        """Bytes of new chunks the next ``rows`` :meth:`put` calls allocate (HDF5 allocates a chunk at
+        its first write)."""
+        first = self.count + self.staged
         return sum(
-            ds.dtype.itemsize * int(np.prod(ds.chunks))
+            ds.dtype.itemsize
+            * int(np.prod(ds.chunks))
+            * sum((first + k) % ds.chunks[0] == 0 for k in range(rows))
             for ds in self.datasets.values()
-            if self.count % ds.chunks[0] == 0
         )
 
     def commit(self) -> None:
-        self.count += 1
+        """Declare the rows put since the last commit valid (call after flushing them)."""
+        self.count += self.staged
+        self.staged = 0
         set_counter(self.counter, self.count)
 
     def trim(self) -> None:

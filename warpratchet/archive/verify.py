@@ -16,6 +16,7 @@ import numpy as np
 
 from .._h5verify import first_line, read_everything
 from .checks import listed, nonfinite
+from .history_group import history_counts
 from .names import COUNTERS, SLOTS, ArchiveError
 from .reader import Archive
 
@@ -24,6 +25,20 @@ __all__ = ["verify_archive"]
 
 def _increasing(values: np.ndarray) -> bool:
     return bool(np.all(np.diff(values) > 0))
+
+
+def _check_history(arc: Archive, problems: list[str]) -> None:
+    """The ``/history`` counters fit their datasets and its steps grow."""
+    try:
+        rows, blocks = history_counts(arc.path, arc._file)
+        g = arc._file["history"]
+        for count, name, what in ((rows, "step", "history_rows"), (blocks, "block_step", "block_rows")):
+            if count > g[name].shape[0]:
+                problems.append(f"progress/{what} = {count} but /history/{name} has {g[name].shape[0]} rows")
+            elif not _increasing(g[name][:count]):
+                problems.append(f"/history/{name} is not increasing")
+    except (ArchiveError, KeyError, OSError, RuntimeError) as exc:
+        problems.append(f"/history: damaged ({first_line(exc)})")
 
 
 def verify_archive(path: str | os.PathLike) -> tuple[list[str], dict[str, Any]]:
@@ -62,6 +77,8 @@ def verify_archive(path: str | os.PathLike) -> tuple[list[str], dict[str, Any]]:
                 continue
             if value > size:
                 problems.append(f"{COUNTERS[arc.format_version][key]} = {value} but /{group} has {size} rows")
+        if "history" in arc.features:
+            _check_history(arc, problems)
         for what, read in (
             ("series", lambda: arc.series["step"]),
             ("snapshots", lambda: arc.snapshots.steps),

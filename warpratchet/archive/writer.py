@@ -23,12 +23,10 @@ from __future__ import annotations
 import contextlib
 import datetime
 import os
-import shutil
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from typing import Any
 
-import h5py
 import numpy as np
 
 from .._files import (
@@ -36,44 +34,34 @@ from .._files import (
     check_new_path,
     claim,
     ensure_space,
-    publish,
     storage_errors,
     sync_h5,
-    temporary_beside,
     try_lock,
 )
-from .._h5 import create_h5
 from ..ensemble import STATE_FIELDS, Ensemble, Observer
 from ..errors import check_count, check_optional, check_real
-from ..observables import acceleration, lyapunov, summarize
+from ..history import History
+from ..observables import summarize
+from ..spec import check_setting
 from . import layout
+from .building import as_archive_error, build_file
 from .checks import listed, nonfinite
 from .chunking import schedule, sink_min_chunk_steps
+from .history_group import HistoryWriter, check_history
 from .names import (
     COUNTERS,
     FORMAT_VERSION,
     SERIES_FIELDS,
-    SLOTS,
     SNAPSHOT_FIELDS,
     ArchiveError,
     NonFiniteStateError,
 )
 from .reopen import reopen
 from .rows import Rows, set_counter
+from .slots import write_slot
+from .snapshots import snapshot_indices, snapshot_row
 
 __all__ = ["ArchiveSink", "NonFiniteStateError"]
-
-#: Salt of the snapshot subsample's generator, so it differs from the sampler's stream.
-_SNAPSHOT_SALT = 0x5A4E
-
-
-@contextlib.contextmanager
-def _as_archive_error() -> Iterator[None]:
-    """The file-safety refusals of :mod:`warpratchet._files` as :class:`ArchiveError` lines."""
-    try:
-        yield
-    except (FileExistsError, FileNotFoundError, BlockingIOError) as exc:
-        raise ArchiveError(str(exc)) from None
 
 
 class ArchiveSink(Observer):
@@ -104,8 +92,16 @@ class ArchiveSink(Observer):
         that a series row costs at most ~1% of the kernel time at this machine's measured
         speed (:func:`~warpratchet.archive.chunking.sink_min_chunk_steps`).
     threshold : float, optional
-        FTLE threshold for the chaotic points of the series (default: per step,
-        :func:`~warpratchet.observables.default_lyapunov_threshold`).
+        FTLE threshold for the chaotic points of the series (default: per step, the rule
+        ``threshold_rule``, :func:`~warpratchet.observables.lyapunov_threshold`).
+    threshold_rule : str
+        ``"strict"`` (default, ``10 (1 + ln n)/n``) or ``"positive"`` (``(1 + ln n)/n``).
+    history : History, optional
+        A :class:`~warpratchet.history.History` (same threshold and rule) to keep in the optional
+        group ``/history``: its rows and block gains are written at each chunk end with the series
+        row, and a resume continues it (:attr:`history`). Pass it to ``Ensemble.run`` among the
+        observers too, so that it records at its own steps (``warpratchet run`` and
+        ``Ensemble.run(archive=...)`` do both).
 
     Raises
     ------
@@ -129,6 +125,8 @@ class ArchiveSink(Observer):
         checkpoint_every: int | None = None,
         threshold: float | None = None,
         chunk_steps: int | None = None,
+        threshold_rule: str = "strict",
+        history: History | None = None,
     ) -> None:
         path = os.fspath(path)
         if not path:
@@ -137,7 +135,11 @@ class ArchiveSink(Observer):
             raise ValueError(f"ensemble = {ensemble!r} is not an Ensemble")
         snapshot_points = check_count("snapshot_points", snapshot_points, 1)
         threshold = check_optional(check_real, "threshold", threshold, 0.0)
-        with _as_archive_error():
+        threshold_rule = check_setting("threshold_rule", threshold_rule)
+        if history is not None:
+            check_history(history, threshold, threshold_rule)
+            history.subsample(ensemble)
+        with as_archive_error():
             exists = check_new_path(path, force=force, hint=" (use force=True / --force)")
         schedule(ensemble.points, chunk_steps, snapshot_every, checkpoint_every)  # bad values: no work
         if chunk_steps is None:
@@ -155,15 +157,15 @@ class ArchiveSink(Observer):
             raise NonFiniteStateError(
                 f"{path}: the state at step {ensemble.step} is not finite ({listed(bad)} non-finite)"
             )
-        with _as_archive_error():
+        with as_archive_error():
             old_fd = claim(path, exclusive=True) if exists else None
         try:
             m = min(snapshot_points, ensemble.points) if snapshot_every else 0
-            rng = np.random.default_rng([_SNAPSHOT_SALT, ensemble.seed or 0])
-            indices = np.sort(rng.choice(ensemble.points, size=m, replace=False)).astype(np.int64)
+            indices = snapshot_indices(ensemble.points, m, ensemble.seed)
             settings = layout.run_settings(
                 ensemble,
                 threshold=threshold,
+                threshold_rule=threshold_rule,
                 chunk_steps=chunk_steps,
                 checkpoint_every=checkpoint_every,
                 snapshot_every=snapshot_every,
@@ -177,6 +179,7 @@ class ArchiveSink(Observer):
                 "initial": initial,
                 "initial_step": ensemble.step,
                 "indices": indices,
+                "history": history,
             }
             needed = sum(v.nbytes for k, v in initial.items() if np.any(v != layout.FILL[k]))
             self._build(path, contents, ensemble, replace=exists, needed=needed)
@@ -187,45 +190,17 @@ class ArchiveSink(Observer):
         self._last_snapshot = ensemble.step
 
     def _build(
-        self,
-        path: str,
-        contents: dict[str, Any],
-        ensemble: Ensemble,
-        *,
-        replace: bool,
-        keep_mode: bool = False,
-        fill: Callable[[h5py.File], None] | None = None,
-        rows: int = 0,
-        snaps: int = 0,
-        needed: int = 0,
+        self, path: str, contents: dict[str, Any], ensemble: Ensemble, *, rows: int = 0, snaps: int = 0, **how
     ) -> None:
-        """Create the layout under a temporary name, ``fill`` it, bind it, publish it atomically.
-
-        ``needed`` bytes must be free first. A failure (a full disk) leaves no temporary file and
-        the old file, if any, untouched.
-        """
-        with storage_errors(path, "create"):
-            ensure_space(path, needed, "the new archive")
-        with storage_errors(path, "create"), temporary_beside(path) as tmp:
-            if keep_mode:
-                with contextlib.suppress(OSError):
-                    shutil.copymode(path, tmp)  # a rebuilt archive keeps the user's permissions
-            f = create_h5(tmp)  # paged: a kill never tears a row chunk or a counter
-            try:
-                layout.create(f, **contents)
-                if fill is not None:
-                    fill(f)
-                self._start(f, path, ensemble, contents["settings"], contents["indices"], rows, snaps)
-                with _as_archive_error():
-                    publish(tmp, path, replace=replace)
-            except BaseException:
-                abandon_h5(f)  # a plain close would retry a failed write (and crash at exit)
-                raise
+        """Create the file (:func:`.building.build_file`, keywords ``how``), bind it to this sink
+        holding ``rows`` series rows and ``snaps`` snapshots, and take a shared lock on it."""
+        build_file(path, contents, lambda f: self._start(f, path, ensemble, contents, rows, snaps), **how)
         self._lock_fd = os.open(path, os.O_RDONLY)
         try_lock(self._lock_fd, exclusive=False)
 
-    def _start(self, f, path, ensemble, settings, indices, rows, snaps) -> None:
+    def _start(self, f, path, ensemble, contents, rows, snaps) -> None:
         """Enter SWMR mode and bind the open file to this sink."""
+        settings, indices, history = contents["settings"], contents["indices"], contents.get("history")
         f.swmr_mode = True
         sync_h5(f)  # durable before the file gets its name
         self._file = f
@@ -236,7 +211,15 @@ class ArchiveSink(Observer):
         self.checkpoint_every = int(settings["checkpoint_every"])
         self.snapshot_every = int(settings["snapshot_every"])
         self.threshold = settings["threshold"]
+        self.threshold_rule = settings.get("threshold_rule") or "strict"
         self._indices = indices
+        #: The run's :class:`~warpratchet.history.History` kept in ``/history`` (None without one).
+        self.history = history
+        self._history = (
+            None
+            if history is None
+            else HistoryWriter(f, history, len(history.rows["step"]), len(history.block_rows["block_step"]))
+        )
         counters = COUNTERS[FORMAT_VERSION]
         self._series = Rows(f["series"], SERIES_FIELDS, f[counters["series"]], rows)
         self._snapshots = Rows(f["snapshots"], ("step", *SNAPSHOT_FIELDS), f[counters["snapshots"]], snaps)
@@ -285,6 +268,8 @@ class ArchiveSink(Observer):
             raise ValueError(f"{self.path}: the archive sink is closed")
         self._target = int(target_step)
         self._row_step = None  # the step of the last row this run wrote
+        if self.history is not None:
+            self.history.begin(ensemble, self._target)  # idempotent: also an observer of the run
         with self._writing():
             set_counter(self._target_counter, self._target)
             self._file.flush()
@@ -295,34 +280,33 @@ class ArchiveSink(Observer):
         live = {name: ensemble.array(name) for name in STATE_FIELDS}  # zero-copy on the CPU
         with self._writing():
             try:
-                summary = summarize(live, step, self.threshold).as_dict()
+                summary = summarize(live, step, self.threshold, self.threshold_rule).as_dict()
             except FloatingPointError as exc:
                 raise NonFiniteStateError(
                     f"{self.path}: the state at step {step} is not finite ({exc}); not archived: "
                     f"the archive keeps its checkpoint at step {self.checkpoint_step}"
                 ) from None
+            if self._history is not None:
+                self._history.record(ensemble)
             clocks = {"wall_time": seconds, "unix_time": time.time()}
             snap = (
                 self.snapshot_every
                 and step // self.snapshot_every > self._last_snapshot // self.snapshot_every
             )
             new_bytes = self._series.growth_bytes() + (self._snapshots.growth_bytes() if snap else 0)
+            if self._history is not None:
+                new_bytes += self._history.growth_bytes()
             if new_bytes:
                 ensure_space(self.path, new_bytes, "the next rows")
             self._series.put({name: clocks.get(name, summary.get(name)) for name in SERIES_FIELDS})
             if snap:
-                sub = {name: live[name][self._indices] for name in STATE_FIELDS}
-                self._snapshots.put(
-                    {
-                        "step": step,
-                        "x": sub["x"],
-                        "p": sub["q"],  # p mod 1 is exactly q
-                        "ftle": lyapunov(sub, step),
-                        "A": acceleration(sub, step),
-                    }
-                )
+                self._snapshots.put(snapshot_row(live, self._indices, step))
+            if self._history is not None:
+                self._history.put()
             f.flush()  # rows on disk before the counters that make them valid
             self._series.commit()
+            if self._history is not None:
+                self._history.commit()
             if snap:
                 self._snapshots.commit()
                 self._last_snapshot = step
@@ -364,20 +348,9 @@ class ArchiveSink(Observer):
                 "b1 or b2 too small for float64?); not checkpointed: the archive keeps its checkpoint "
                 f"at step {self.checkpoint_step}"
             )
-        f = self._file
         free = 1 - self._current if self._current >= 0 else 0
-        slot = f["checkpoint"][SLOTS[free]]
         with self._writing():
-            if slot["x"].id.get_num_chunks() == 0:  # the slot's first use allocates its space
-                ensure_space(self.path, sum(v.nbytes for v in state.values()), "the checkpoint")
-            set_counter(slot["step"], -1)  # in progress: neither a reader nor a recovery may trust it
-            f.flush()
-            for name in STATE_FIELDS:
-                slot[name].write_direct(state[name])
-            sync_h5(f)  # the data is durable before anything points at it
-            set_counter(slot["step"], ensemble.step)
-            set_counter(f["checkpoint"]["current"], free)
-            sync_h5(f)
+            write_slot(self.path, self._file, free, state, ensemble.step)
         self._current = free
         self.checkpoint_step = ensemble.step
 
@@ -389,6 +362,8 @@ class ArchiveSink(Observer):
                 with storage_errors(self.path, "write"):
                     self._series.trim()
                     self._snapshots.trim()
+                    if self._history is not None:
+                        self._history.trim()
                     f.flush()
                     f.close()
             except BaseException:

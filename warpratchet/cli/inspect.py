@@ -79,5 +79,15 @@ def command(args: argparse.Namespace) -> int:
             f"  latest (step {last['step']}): A = {last['A']:.6g} +- {last['A_stderr']:.2g}{a_theory}, "
             f"lyapunov = {last['lyapunov']:.6g} over {last['chaotic_fraction']:.4f} of the points"
         )
+    h = info["history"]
+    if h is not None and "convergence" in h:
+        c = h["convergence"]
+        print(
+            f"  history: {h['rows']} rows, {h['blocks']} block records; at its last row A_n - A_n/2 = "
+            f"{c['drift']:+.2g} (z = {c['drift_z']:+.2f}), robust stderr {c['A_stderr_robust']:.2g}: "
+            f"{c['verdict']}"
+        )
+    elif h is not None:
+        print("  history: no row recorded yet")
     print("  written by " + ", ".join(f"{k} {val}" for k, val in v.items()))
     return 0

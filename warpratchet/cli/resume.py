@@ -12,7 +12,7 @@ import warnings
 
 from ..spec import LEGACY_NAMES
 from .common import ProgressBar, UsageError, print_warnings, spec_flag, spec_flags
-from .run import print_report, run_report
+from .run import history_report, print_report, resolved_threshold, run_report
 
 #: Settings that may be given to check them against the archive.
 CHECKED = ("K", "b1", "b2", "points", "seed", "init")
@@ -65,10 +65,14 @@ def command(args: argparse.Namespace) -> int:
             )
         sink, ensemble = ArchiveSink.resume(args.archive, threads=args.threads, device=args.device)
     print_warnings(caught)
+    from ..history import History
+
+    # An archive written before histories existed: this session's rows only, not archived.
+    history = sink.history or History(sink.threshold, sink.threshold_rule)
     first = ensemble.step
     start = time.perf_counter()
     try:
-        run_to(ensemble, args.steps, [ProgressBar(disable=args.quiet), sink], sink.chunk_steps)
+        run_to(ensemble, args.steps, [ProgressBar(disable=args.quiet), history, sink], sink.chunk_steps)
     except KeyboardInterrupt:
         raise KeyboardInterrupt(
             f"{args.archive} keeps the checkpoint at step {sink.checkpoint_step}; "
@@ -77,7 +81,9 @@ def command(args: argparse.Namespace) -> int:
     finally:
         sink.close()
     seconds = time.perf_counter() - start
-    report = run_report(ensemble, seconds, args.steps - first, sink.threshold)
+    threshold = resolved_threshold(sink.threshold, sink.threshold_rule, ensemble.step)
+    report = run_report(ensemble, seconds, args.steps - first, threshold)
+    report.update(history_report(history, sink.threshold_rule))
     report["archive"] = args.archive
     print_report(report, args.json)
     return 0

@@ -86,12 +86,46 @@ def print_report(report: dict[str, Any], as_json: bool) -> None:
         f"  lyapunov    = {_number(report['lyapunov'], '.6g')} (min {_number(report['lyapunov_min'], '.4g')})"
         f" over {report['chaotic_fraction']:.4f} of the points"
     )
+    if report.get("verdict") is not None:
+        print(
+            f"  convergence : A_n - A_n/2 = {_number(report['drift'], '+.2g')} "
+            f"(z = {_number(report['drift_z'], '+.2f')}), robust stderr "
+            f"{_number(report['A_stderr_robust'], '.2g')}: {report['verdict']}"
+        )
     if report["point_steps_per_second"]:
         print(f"  {report['seconds']:.2f} s, {report['point_steps_per_second'] / 1e6:.0f} M point-steps/s")
 
 
-def _archive(args: argparse.Namespace, spec: RunSpec, plan: dict[str, Any]):
-    """``(sink, ensemble)``: a new archive of a sampled ensemble, or the archive resumed (same run)."""
+def history_report(history, threshold_rule: str) -> dict[str, Any]:
+    """The keys ``run`` and ``resume`` add for the history: the verdict, and the rows under ``history``.
+
+    ``A_stderr_robust``, ``drift`` (A_n - A_n/2), ``drift_z``, ``verdict`` and ``diffusion_exponent``
+    (:meth:`warpratchet.history.History.convergence`); ``history`` is a dict of equal-length lists
+    (``step``, ``A``, ``A_stderr``, ``sigma``, ``chaotic_fraction``, ``chaotic_points``,
+    ``var_dp_all``, ``var_dp_chaotic``).
+    """
+    verdict = history.convergence()
+    return {
+        "threshold_rule": threshold_rule,
+        "A_stderr_robust": verdict.A_stderr_robust,
+        "drift": verdict.drift,
+        "drift_z": verdict.drift_z,
+        "verdict": verdict.verdict,
+        "diffusion_exponent": verdict.exponent,
+        "history": history.as_dict(),
+    }
+
+
+def resolved_threshold(threshold: float | None, rule: str, step: int) -> float | None:
+    """The threshold ``run_report`` needs: the given one, or the rule's value at ``step`` (None: strict)."""
+    from ..observables import lyapunov_threshold
+
+    return threshold if threshold is not None or rule == "strict" else lyapunov_threshold(step, rule)
+
+
+def _archive(args: argparse.Namespace, spec: RunSpec, plan: dict[str, Any], history):
+    """``(sink, ensemble, history)``: a new archive of a sampled ensemble (keeping ``history``), or
+    the archive resumed (same run) with the history it keeps."""
     import warnings
 
     from ..archive import ArchiveSink, ArchiveWarning
@@ -104,22 +138,25 @@ def _archive(args: argparse.Namespace, spec: RunSpec, plan: dict[str, Any]):
             warnings.simplefilter("always", ArchiveWarning)
             with open_archive(args.out) as arc:
                 ensemble = arc.ensemble(threads=spec.threads, device=spec.device)
+                history = arc.history or history
         print_warnings(caught)
-        return None, ensemble
+        return None, ensemble, history
     if "resume" in plan:  # the same command again: continue where the archive stands
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ArchiveWarning)
             sink, ensemble = ArchiveSink.resume(args.out, threads=spec.threads, device=spec.device)
         print_warnings(caught)
-        return sink, ensemble
+        # An archive written before histories existed: record this session's rows, not archived.
+        return sink, ensemble, sink.history or history
     ensemble = Ensemble.sample(
         spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
     )
-    return ArchiveSink(args.out, ensemble, **plan), ensemble
+    return ArchiveSink(args.out, ensemble, history=history, **plan), ensemble, history
 
 
 def command(args: argparse.Namespace) -> int:
     from ..ensemble import Ensemble
+    from ..history import History
 
     spec = spec_from_args(args)
     plan = archive_plan(args, spec)  # bad archive flags fail before any work
@@ -127,8 +164,11 @@ def command(args: argparse.Namespace) -> int:
     observers = [ProgressBar(disable=args.quiet)]
     chunk_steps = spec.chunk_steps
     sink = None
+    # The history: log-spaced rows and block gains, for the convergence verdict (in the archive too).
+    history = History(spec.threshold, spec.threshold_rule)
     if plan is not None:
-        sink, ensemble = _archive(args, spec, plan)
+        sink, ensemble, history = _archive(args, spec, plan, history)
+        observers.append(history)
         if sink is not None:
             observers.append(sink)
             chunk_steps = sink.chunk_steps
@@ -136,6 +176,7 @@ def command(args: argparse.Namespace) -> int:
         ensemble = Ensemble.sample(
             spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
         )
+        observers.append(history)
     if recorder is not None:
         observers.append(recorder)  # its frames end chunks themselves (Observer.next_stop)
     first = ensemble.step
@@ -155,7 +196,9 @@ def command(args: argparse.Namespace) -> int:
         if sink is not None:
             sink.close()
     seconds = time.perf_counter() - start
-    report = run_report(ensemble, seconds, spec.steps - first, spec.threshold)
+    threshold = resolved_threshold(spec.threshold, spec.threshold_rule, ensemble.step)
+    report = run_report(ensemble, seconds, spec.steps - first, threshold)
+    report.update(history_report(history, spec.threshold_rule))
     if plan is not None:
         report["archive"] = args.out
     if recorder is not None and args.rerun is not None:

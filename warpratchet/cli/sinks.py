@@ -75,6 +75,7 @@ def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | No
         "checkpoint_every": args.checkpoint_every,
         "chunk_steps": spec.chunk_steps,
         "threshold": spec.threshold,
+        "threshold_rule": spec.threshold_rule,
     }
 
 
@@ -102,6 +103,7 @@ def _resumable(args: argparse.Namespace, spec: RunSpec) -> int:
         "points": points,
         "seed": spec.seed,
         "threshold": spec.threshold,
+        "threshold_rule": spec.threshold_rule,
         "snapshot_every": args.snapshot_every,
     }
     given = {

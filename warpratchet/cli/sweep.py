@@ -3,7 +3,7 @@
 Where the points are: ``--path`` (the paper's paths, :mod:`warpratchet.sweep.paths`) or
 ``--grid``, with ranges ``START:STOP:COUNT`` that include both ends. What runs at each point:
 the :class:`~warpratchet.spec.SweepSpec` flags (``--points --steps --seed --init
---threshold``), plus ``--threads`` and ``--scheduler`` (where it runs, never what).
+--threshold --threshold-rule``), plus ``--threads`` and ``--scheduler`` (where it runs, never what).
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ def add(sub) -> None:
     )
     spec_flags(
         p,
-        ("points", "steps", "seed", "init", "threshold"),
+        ("points", "steps", "seed", "init", "threshold", "threshold_rule"),
         points={"help": "ensemble size per point (default 10000)"},
         steps={"help": "iterations per point (default 120000)"},
         seed={"help": "root seed; point i uses child i of numpy SeedSequence(seed) (default 0)"},
@@ -169,7 +169,7 @@ def _print_rows(rows: list[dict], computed: int, out: str | None) -> None:
     """
     print(
         f"{'K':>6} {'b1':>10} {'b2':>10} {'domain':>6} {'A':>11} {'+-':>8} {'A_theory':>11} "
-        f"{'lyapunov':>9} {'chaotic':>7} {'seconds':>8}"
+        f"{'lyapunov':>9} {'chaotic':>7} {'seconds':>8} {'drift z':>7} verdict"
     )
     few = 0
     for r in rows:
@@ -178,7 +178,8 @@ def _print_rows(rows: list[dict], computed: int, out: str | None) -> None:
         print(
             f"{r['K']:>6.4g} {r['b1']:>10.4g} {r['b2']:>10.4g} {r['domain']:>6} {_cell(r['A'], 11, '.5g')} "
             f"{_cell(r['A_stderr'], 8, '.2g')} {_cell(r['A_theory'], 11, '.5g')} "
-            f"{_cell(r['lyapunov'], 9, '.4g')} {r['chaotic_fraction']:>7.4f} {r['seconds']:>8.2f}{mark}"
+            f"{_cell(r['lyapunov'], 9, '.4g')} {r['chaotic_fraction']:>7.4f} {r['seconds']:>8.2f} "
+            f"{_cell(r['drift_z'], 7, '+.2f')} {r['verdict'] or 'n/a'}{mark}"
         )
     source = f", {len(rows) - computed} read from {out}" if out is not None else ""
     print(f"{len(rows)} points: {computed} computed{source}")

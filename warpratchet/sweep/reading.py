@@ -8,6 +8,7 @@ record whose checksum fails is an error, never a number.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import os
 from typing import Any
@@ -35,8 +36,10 @@ __all__ = [
 def definition_mismatch(f: h5py.File, params: np.ndarray, spec: SweepSpec) -> str | None:
     """Why the sweep stored in ``f`` is not (params, spec), or None if it is the same sweep."""
     stored_spec = json.loads(attr_value(f.attrs["spec"]))
+    # A setting added since the file was written is stored as its default (threshold_rule).
+    defaults = {field.name: field.default for field in dataclasses.fields(SweepSpec)}
     for key, value in spec.as_dict().items():
-        if stored_spec.get(key) != value:
+        if stored_spec.get(key, defaults[key]) != value:
             return f"{key} is {stored_spec.get(key)!r} in the file, {value!r} requested"
     stored = f["parameters"][()]
     if stored.shape != params.shape:

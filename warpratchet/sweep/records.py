@@ -19,6 +19,7 @@ __all__ = [
     "ROW_FIELDS",
     "TIMING_FIELDS",
     "ROW_DESCRIPTIONS",
+    "ADDED_COLUMNS",
     "to_record",
     "from_record",
 ]
@@ -49,10 +50,27 @@ ROW_DTYPE = np.dtype(
         ("seed", "<i8"),  # the point's own seed, point_seed(spec.seed, index)
         ("init", "S8"),
         ("threshold", "<f8"),  # FTLE threshold used for the chaotic mask
+        ("threshold_rule", "S8"),  # the rule of a default threshold: strict or positive
+        ("A_stderr_robust", "<f8"),  # robust standard error of A (warpratchet.convergence)
+        ("drift", "<f8"),  # A_n - A_{n/2}
+        ("drift_z", "<f8"),  # the drift in units of its standard error
+        ("verdict", "S10"),  # converged, drifting, too short, undefined ("" in older files)
+        ("diffusion_exponent", "<f8"),  # mu of Var(gain over T) ~ T^mu, from the block gains
         ("seconds", "<f8"),  # wall time of the ensemble run on whichever machine ran it
     ]
 )
 ROW_FIELDS: tuple[str, ...] = tuple(ROW_DTYPE.names)
+#: Columns added after format version 2 first shipped, and their value in rows of files written
+#: before (read as such; a resumed file is rebuilt with them). Not a new version: the rows of
+#: these files read with the first v2 release too (it picks the columns it knows).
+ADDED_COLUMNS: dict[str, Any] = {
+    "threshold_rule": "strict",
+    "A_stderr_robust": float("nan"),
+    "drift": float("nan"),
+    "drift_z": float("nan"),
+    "verdict": "",
+    "diffusion_exponent": float("nan"),
+}
 #: Row fields that depend on the machine, not on (params, spec, index): leave them out when
 #: comparing rows from different runs or executors.
 TIMING_FIELDS: tuple[str, ...] = ("seconds",)
@@ -78,6 +96,12 @@ ROW_DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "seed": ("1", "the point's own seed, point_seed(spec.seed, index)"),
     "init": ("", "sampler of the initial ensemble"),
     "threshold": ("1/iteration", "FTLE threshold used for the chaotic mask"),
+    "threshold_rule": ("", "rule of the default threshold: strict or positive"),
+    "A_stderr_robust": ("1/iteration", "robust standard error of A (batch means over time)"),
+    "drift": ("1/iteration", "A_n - A_n/2, the drift of A over the second half of the run"),
+    "drift_z": ("1", "the drift in units of its standard error"),
+    "verdict": ("", "converged, drifting (|drift_z| > 3), too short or undefined"),
+    "diffusion_exponent": ("1", "mu of the block-gain variance ~ T^mu (1 diffusive, 2 ballistic)"),
     "seconds": ("s", "wall time of the ensemble run"),
 }
 
@@ -88,13 +112,19 @@ _INT_FIELDS = tuple(name for name in ROW_FIELDS if ROW_DTYPE[name].kind == "i")
 def to_record(row: dict[str, Any]) -> np.ndarray:
     record = np.zeros((), dtype=ROW_DTYPE)
     for name in ROW_FIELDS:
-        record[name] = row[name].encode("ascii") if name in _STRING_FIELDS else row[name]
+        value = row[name] if name in row or name not in ADDED_COLUMNS else ADDED_COLUMNS[name]
+        record[name] = value.encode("ascii") if name in _STRING_FIELDS else value
     return record
 
 
 def from_record(record: np.void) -> dict[str, Any]:
+    """A row of a stored record; a column the file predates takes its :data:`ADDED_COLUMNS` value."""
     row: dict[str, Any] = {}
+    stored = record.dtype.names
     for name in ROW_FIELDS:
+        if name not in stored:
+            row[name] = ADDED_COLUMNS[name]
+            continue
         value = record[name]
         if name in _STRING_FIELDS:
             row[name] = bytes(value).decode("ascii")

@@ -28,6 +28,7 @@ import numpy as np
 from .. import theory
 from ..ensemble import Ensemble
 from ..errors import ParameterError, check_count
+from ..history import History
 from ..observables import summarize
 from ..params import MapParams
 from ..progress import ProgressBar
@@ -80,7 +81,9 @@ def run_point(
     -------
     dict
         One row, keys :data:`~warpratchet.sweep.file.ROW_FIELDS` (per-iteration A and FTLE,
-        seconds of wall time).
+        the convergence verdict of the run's :class:`~warpratchet.history.History`: robust
+        standard error, drift of A between n/2 and n, verdict; seconds of wall time, including
+        the history's ~1%).
 
     Raises
     ------
@@ -89,15 +92,17 @@ def run_point(
     """
     run = spec.at(params, point_seed(spec.seed, index), threads)
     ensemble = Ensemble.sample(run.params, run.points, run.init, run.seed, threads=run.threads)
+    history = History(run.threshold, run.threshold_rule)
     start = time.perf_counter()
-    ensemble.run(run.steps)
-    seconds = time.perf_counter() - start
     try:
-        s = summarize(ensemble.state(), ensemble.step, run.threshold)
+        ensemble.run(run.steps, [history])
+        s = summarize(ensemble.state(), ensemble.step, run.threshold, run.threshold_rule)
     except FloatingPointError as exc:
         raise ValueError(
             f"sweep point {index} (K={params.K!r}, b1={params.b1!r}, b2={params.b2!r}): {exc}"
         ) from exc
+    seconds = time.perf_counter() - start
+    verdict = history.convergence()
     # theory.acceleration is exact only at K = 3 (Sec. IV); elsewhere the paper has no closed form.
     a_theory = theory.acceleration(params) if params.K == 3.0 else None
     row = {
@@ -109,6 +114,11 @@ def run_point(
         "A_theory": math.nan if a_theory is None else float(a_theory),
         "points": ensemble.points,  # as run: a grid rounds down to a square
         "steps": ensemble.step,
+        "A_stderr_robust": verdict.A_stderr_robust,
+        "drift": verdict.drift,
+        "drift_z": verdict.drift_z,
+        "verdict": verdict.verdict,
+        "diffusion_exponent": verdict.exponent,
         "seconds": seconds,
     }
     return {name: row[name] for name in ROW_FIELDS}

@@ -1,0 +1,176 @@
+"""The optional ``/history`` group of an archive (feature ``history``): a run's :class:`History`.
+
+Rows and block records of a :class:`~warpratchet.history.History` are written by the archive
+sink at each chunk end, in the same flush as the series row and before their counters
+(``/progress/history_rows``, ``/progress/block_rows``), so a kill leaves only complete records;
+the history of a chunk end is on disk before any checkpoint at that step. A resume keeps the
+records up to the checkpoint (the resumed run records the rest, identically), so a resumed
+run's history equals the uninterrupted one bit for bit. The layout is created with the rest
+(:func:`warpratchet.archive.layout.create`); this module writes, reads and salvages it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import h5py
+import numpy as np
+
+from ..history import BLOCK_FIELDS, HISTORY_FIELDS, History
+from .checks import check_extent, reading
+from .checks import refresh as _refresh
+from .names import HISTORY_COUNTERS, ArchiveError
+from .rows import Rows
+
+__all__ = [
+    "HistoryWriter",
+    "check_history",
+    "read_history",
+    "history_counts",
+    "history_settings",
+    "history_info",
+    "write_history",
+]
+
+
+def check_history(history: History, threshold: float | None, rule: str) -> None:
+    """ValueError unless ``history`` can be kept by a new archive classifying with ``threshold``, ``rule``."""
+    if not isinstance(history, History):
+        raise ValueError(f"history = {history!r} is not a History")
+    if (history.threshold, history.rule) != (threshold, rule):
+        raise ValueError(
+            f"the history classifies with threshold = {history.threshold!r}, rule = {history.rule!r}; "
+            f"the archive with threshold = {threshold!r}, rule = {rule!r}"
+        )
+    if history.rows["step"] or history.block_rows["block_step"]:
+        raise ValueError(
+            "history holds records of an earlier run; a new archive needs a new History "
+            "(ArchiveSink.resume continues an archived one)"
+        )
+
+
+class HistoryWriter:
+    """Appends the records of ``history`` that are not in the file yet (``rows``, ``blocks`` are)."""
+
+    def __init__(self, f: h5py.File, history: History, rows: int, blocks: int) -> None:
+        self.history = history
+        g = f["history"]
+        self.rows = Rows(g, HISTORY_FIELDS, f[HISTORY_COUNTERS["rows"]], rows)
+        self.blocks = Rows(g, BLOCK_FIELDS, f[HISTORY_COUNTERS["blocks"]], blocks)
+
+    def record(self, ensemble: Any) -> None:
+        """Make sure the history holds its record of this step (``after_chunk`` is idempotent), and
+        that it has not missed earlier steps (it must be an observer of the run, for its stops)."""
+        missed = self.history.overdue(ensemble.step)
+        self.history.after_chunk(ensemble, 0.0)
+        if missed:
+            raise ValueError(
+                f"the archive's history missed its step {missed[0]}: pass sink.history to Ensemble.run "
+                "among the observers (it ends chunks at its steps)"
+            )
+
+    def _new(self) -> tuple[int, int]:
+        return (
+            len(self.history.rows["step"]) - self.rows.count - self.rows.staged,
+            len(self.history.block_rows["block_step"]) - self.blocks.count - self.blocks.staged,
+        )
+
+    def growth_bytes(self) -> int:
+        """Bytes of new chunks the records waiting to be written allocate."""
+        rows, blocks = self._new()
+        return self.rows.growth_bytes(rows) + self.blocks.growth_bytes(blocks)
+
+    def put(self) -> None:
+        """Write every record not yet in the file (not yet valid: :meth:`commit` after a flush)."""
+        h = self.history
+        for i in range(self.rows.count + self.rows.staged, len(h.rows["step"])):
+            self.rows.put({name: h.rows[name][i] for name in HISTORY_FIELDS})
+        for i in range(self.blocks.count + self.blocks.staged, len(h.block_rows["block_step"])):
+            self.blocks.put({name: h.block_rows[name][i] for name in BLOCK_FIELDS})
+
+    def commit(self) -> None:
+        if self.rows.staged:
+            self.rows.commit()
+        if self.blocks.staged:
+            self.blocks.commit()
+
+    def trim(self) -> None:
+        self.rows.trim()
+        self.blocks.trim()
+
+
+def _count(path: str, f: h5py.File, key: str) -> int:
+    where = HISTORY_COUNTERS[key]
+    with reading(path, f"/{where}"):
+        ds = _refresh(f[where])
+        check_extent(path, ds)
+        n = int(ds[0])
+    if n < 0:
+        raise ArchiveError(f"{path}: /{where} = {n} is negative; the archive is corrupted")
+    return n
+
+
+def history_counts(path: str, f: h5py.File) -> tuple[int, int]:
+    """The valid ``(rows, block records)`` of the ``/history`` of an open archive."""
+    return _count(path, f, "rows"), _count(path, f, "blocks")
+
+
+def history_settings(path: str, f: h5py.File, settings: dict[str, Any]) -> dict[str, Any]:
+    """The :class:`History` keywords of an archive: the run's threshold and rule, the group's attributes."""
+    from ..spec import attr_value
+
+    with reading(path, "/history"):
+        attrs = {k: attr_value(v) for k, v in f["history"].attrs.items()}
+    return {
+        "threshold": settings.get("threshold"),
+        "rule": settings.get("threshold_rule") or "strict",
+        "per_decade": int(attrs["per_decade"]),
+        "blocks": int(attrs["blocks"]),
+        "block_points": max(2, int(attrs["block_points"])),
+    }
+
+
+def read_history(path: str, f: h5py.File, settings: dict[str, Any]) -> History:
+    """The :class:`History` stored in an open archive (its valid records), ready to continue."""
+    n_rows, n_blocks = history_counts(path, f)
+    g = f["history"]
+    rows, blocks = {}, {}
+    for names, n, out in ((HISTORY_FIELDS, n_rows, rows), (BLOCK_FIELDS, n_blocks, blocks)):
+        for name in names:
+            with reading(path, f"/history/{name}"):
+                ds = _refresh(g[name])
+                if ds.shape[0] < n:
+                    raise ArchiveError(f"{path}: /history/{name} has {ds.shape[0]} rows, {n} are valid")
+                check_extent(path, ds, n)
+                out[name] = ds[:n]
+    with reading(path, "/history/block_indices"):
+        indices = _refresh(g["block_indices"])[:]
+    return History.restore(rows, blocks, indices, **history_settings(path, f, settings))
+
+
+def history_info(history: History | None) -> dict[str, Any] | None:
+    """Rows and block records of a history and the verdict at its last row (what ``inspect`` shows)."""
+    if history is None:
+        return None
+    info: dict[str, Any] = {
+        "rows": len(history.rows["step"]),
+        "blocks": len(history.block_rows["block_step"]),
+    }
+    if history.rows["step"]:
+        info["convergence"] = history.convergence().as_dict()
+    return info
+
+
+def write_history(f: h5py.File, history: History) -> None:
+    """Put the records of ``history`` into the freshly created ``/history`` of ``f`` (a rebuilt archive)."""
+    g = f["history"]
+    for names, records, key in (
+        (HISTORY_FIELDS, history.rows, "rows"),
+        (BLOCK_FIELDS, history.block_rows, "blocks"),
+    ):
+        n = len(records[names[0]])
+        for name in names:
+            if n:
+                g[name].resize(n, axis=0)
+                g[name][...] = np.asarray(records[name], dtype=g[name].dtype).reshape(g[name].shape)
+        f[HISTORY_COUNTERS[key]][0] = n

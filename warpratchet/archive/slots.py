@@ -1,0 +1,128 @@
+"""The two checkpoint slots: written crash-safe into the free one, read newest first.
+
+Writing (:func:`write_slot`): the slot *not* holding the newest checkpoint gets ``step`` -1 (in
+progress: nobody may trust it), its data fsynced, then its ``step`` and ``/checkpoint/current``.
+Reading (:func:`newest_good`): the complete slots newest first, each slot's ``step`` read before
+and after its data (a sequence lock), so a slot a live writer recycles meanwhile is read again,
+never reported as damaged; a slot whose checksum fails or that holds non-finite values (written
+by format v1 releases) is skipped and described. docs/archive.md has the whole story.
+"""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+
+from .._files import ensure_space, sync_h5
+from ..ensemble import STATE_FIELDS
+from .checks import check_extent, listed, nonfinite, reading
+from .checks import refresh as _refresh
+from .names import SLOTS, ArchiveError
+from .rows import set_counter
+
+__all__ = ["read_state", "slot_step", "slot_steps", "newest_good", "write_slot"]
+
+#: Attempts at reading a slot that a live writer keeps recycling.
+_ATTEMPTS = 10
+
+
+def read_state(path: str, f: h5py.File, group: str, points: int) -> dict[str, np.ndarray]:
+    """The per-point state stored in ``group`` (``"initial"``, ``"checkpoint/a"``, ...), unchecked."""
+    state = {}
+    for name in STATE_FIELDS:
+        with reading(path, f"/{group}/{name}"):
+            ds = _refresh(f[group][name])
+            if ds.shape != (points,):
+                raise ArchiveError(f"{path}: /{group}/{name} has shape {ds.shape}, expected ({points},)")
+            check_extent(path, ds)
+            state[name] = ds[:]
+    return state
+
+
+def slot_step(path: str, f: h5py.File, name: str) -> int:
+    """The ``step`` of slot ``name`` (-1: in progress)."""
+    with reading(path, f"/checkpoint/{name}/step"):
+        ds = _refresh(f["checkpoint"][name]["step"])
+        check_extent(path, ds)
+        return int(ds[0])
+
+
+def slot_steps(path: str, f: h5py.File, problems: list[str] | None = None) -> list[tuple[int, str]]:
+    """Complete slots as ``(step, name)``, newest first (``step`` -1 marks a slot in progress).
+
+    An unreadable slot raises, or is skipped and described in ``problems`` if given.
+    """
+    out = []
+    for name in SLOTS:
+        try:
+            step = slot_step(path, f, name)
+        except ArchiveError as exc:
+            if problems is None:
+                raise
+            problems.append(f"checkpoint slot {name!r} is unreadable ({exc})")
+            continue
+        if step >= 0:
+            out.append((step, name))
+    return sorted(out, reverse=True)
+
+
+def newest_good(
+    path: str, f: h5py.File, points: int
+) -> tuple[tuple[dict[str, np.ndarray], int] | None, list[str]]:
+    """``((state, step) or None, problems)``: the newest slot whose data verify and are finite.
+
+    ``problems`` describes the slots skipped on the way (the caller warns); None when no slot is
+    good (the caller falls back to the initial state).
+    """
+    problems: list[str] = []
+    for _attempt in range(_ATTEMPTS):
+        problems.clear()
+        retry = False
+        for step, name in slot_steps(path, f, problems):
+            try:
+                state = read_state(path, f, f"checkpoint/{name}", points)
+            except ArchiveError as exc:
+                try:
+                    again = slot_step(path, f, name)
+                except ArchiveError:
+                    again = step
+                if again != step:  # recycled meanwhile: a torn read, not damage
+                    retry = True
+                    break
+                problems.append(f"checkpoint at step {step} is unreadable ({exc})")
+                continue
+            try:
+                again = slot_step(path, f, name)
+            except ArchiveError as exc:
+                problems.append(f"checkpoint at step {step} is unreadable ({exc})")
+                continue
+            if again != step:  # overwritten while we read: start over
+                retry = True
+                break
+            bad = nonfinite(state)
+            if bad:
+                problems.append(f"checkpoint at step {step} holds non-finite values ({listed(bad)})")
+                continue
+            return (state, step), problems
+        if not retry:
+            break
+    return None, problems
+
+
+def write_slot(path: str, f: h5py.File, free: int, state: dict[str, np.ndarray], step: int) -> None:
+    """Write the finite ``state`` at ``step`` into slot ``SLOTS[free]``, then make it current.
+
+    The caller has checked ``state`` is finite and turns a refused write into its error; a kill at
+    any point leaves the other slot current and intact.
+    """
+    slot = f["checkpoint"][SLOTS[free]]
+    if slot["x"].id.get_num_chunks() == 0:  # the slot's first use allocates its space
+        ensure_space(path, sum(v.nbytes for v in state.values()), "the checkpoint")
+    set_counter(slot["step"], -1)  # in progress: neither a reader nor a recovery may trust it
+    f.flush()
+    for name in STATE_FIELDS:
+        slot[name].write_direct(state[name])
+    sync_h5(f)  # the data is durable before anything points at it
+    set_counter(slot["step"], step)
+    set_counter(f["checkpoint"]["current"], free)
+    sync_h5(f)
