@@ -107,15 +107,22 @@ def test_counts_do_not_depend_on_threads_chunking_or_interruption(init):
             ens.run(steps, chunk_steps=chunk)
         return ens.transport_state(), ens.state()
 
-    (carry, counts), state = final(1, [4000], 10_000)
-    assert counts[0, 6:].sum() > 0  # returns of 64 steps and more: the int64 parts of the trackers
+    transport, state = final(1, [4000], 10_000)
+    assert transport.counts[0, 6:].sum() > 0  # returns of 64 steps and more: the trackers' int64 parts
+    assert transport.spread_steps.tolist()[-3:] == [1778, 2371, 3162]  # round(10^(k/8)), any target
     for threads, pieces, chunk in ((2, [4000], 64), (3, [200, 3800], 1), (2, [1, 999, 3000], 333)):
-        (other_carry, other_counts), other_state = final(threads, pieces, chunk)
-        np.testing.assert_array_equal(other_counts, counts, err_msg=f"threads={threads} chunk={chunk}")
-        for name in CARRY_FIELDS:
-            np.testing.assert_array_equal(other_carry[name], carry[name], err_msg=name)
+        other, other_state = final(threads, pieces, chunk)
+        _assert_same_transport(other, transport, f"threads={threads} chunk={chunk} pieces={pieces}")
         for name in state:
             np.testing.assert_array_equal(other_state[name], state[name], err_msg=name)
+
+
+def _assert_same_transport(got, expected, what: str = "") -> None:
+    np.testing.assert_array_equal(got.counts, expected.counts, err_msg=f"counts {what}")
+    for name in CARRY_FIELDS:
+        np.testing.assert_array_equal(got.carry[name], expected.carry[name], err_msg=f"{name} {what}")
+    np.testing.assert_array_equal(got.spread_steps, expected.spread_steps, err_msg=f"spread steps {what}")
+    np.testing.assert_array_equal(got.spread, expected.spread, err_msg=f"spread {what}")
 
 
 def test_an_ensemble_rebuilt_from_its_transport_state_continues_exactly():
@@ -124,12 +131,9 @@ def test_an_ensemble_rebuilt_from_its_transport_state_continues_exactly():
     whole.run(2000)
     half = TransportEnsemble.sample(p, 500, "torus", seed=2)
     half.run(777)
-    carry, counts = half.transport_state()
-    again = TransportEnsemble.from_state(p, half.state(), half.step, carry=carry, counts=counts)
+    again = TransportEnsemble.from_state(p, half.state(), half.step, transport=half.transport_state())
     again.run(2000 - 777)
-    np.testing.assert_array_equal(again.transport_state()[1], whole.transport_state()[1])
-    for name, values in whole.transport_state()[0].items():
-        np.testing.assert_array_equal(again.transport_state()[0][name], values)
+    _assert_same_transport(again.transport_state(), whole.transport_state())
 
 
 def test_the_orbit_is_the_plain_kernels():
@@ -157,7 +161,7 @@ def test_first_gap_counts_from_step_zero_only_for_points_that_start_in_B():
     carry = twin.initial_carry(p, x, 0)
     np.testing.assert_array_equal(carry["last_visit"], [0, -1, 0, 0, 0, -1])
     ens = TransportEnsemble(p, x, np.zeros_like(x))
-    np.testing.assert_array_equal(ens.transport_state()[0]["last_visit"], carry["last_visit"])
+    np.testing.assert_array_equal(ens.transport_state().carry["last_visit"], carry["last_visit"])
 
 
 def test_bins_edges_and_open_runs():

@@ -3,7 +3,9 @@
 The kernel variant :mod:`warpratchet.kernels.transport` advances the orbit bitwise as the plain
 kernel does and counts, inside the step loop, the completed return gaps to B and flights into
 log2-binned histograms (:mod:`.histograms`). This class owns the per-point carry state (runs in
-progress, one int64 triple per point, 24 bytes) and the running totals of the histograms.
+progress, one int64 triple per point, 24 bytes), the running totals of the histograms, and the
+spread of the momentum at log-spaced steps (:mod:`.diffusion`, recorded by an observer that
+each :meth:`~TransportEnsemble.run` adds) from which the exponent mu is fitted.
 
 Exactness. Each launch counts into a histogram array of its own; the totals are int64 sums,
 whose result does not depend on the order of the additions, so counts are the same for any
@@ -15,6 +17,8 @@ end of a launch continue in the next one; with the state it is everything a resu
 from __future__ import annotations
 
 import threading
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import warp as wp
@@ -22,10 +26,28 @@ import warp as wp
 from ..ensemble import Ensemble
 from ..kernels.transport import advance_map_transport
 from ..params import MapParams
+from ..runloop import Observer
+from .diffusion import Spread
+from .fits import GROUPS, DiffusionFit, diffusion_fit, pooled_variance
 from .histograms import BINS, CARRY_FIELDS, HISTOGRAMS, Histograms, open_runs
 from .twin import initial_carry
 
-__all__ = ["TransportEnsemble"]
+__all__ = ["TransportEnsemble", "TransportState"]
+
+
+@dataclass(frozen=True)
+class TransportState:
+    """Everything a transport run adds to the state, at one step (what an archive checkpoints).
+
+    ``carry``: :data:`CARRY_FIELDS`, int64 ``(points,)`` each; ``counts``: ``(3, BINS)`` int64;
+    ``spread_steps``: ``(rows,)`` int64 and ``spread``: ``(rows, GROUPS, 3)`` float64, the
+    moments of :mod:`.diffusion`.
+    """
+
+    carry: dict[str, np.ndarray]
+    counts: np.ndarray
+    spread_steps: np.ndarray
+    spread: np.ndarray
 
 
 class TransportEnsemble(Ensemble):
@@ -37,14 +59,17 @@ class TransportEnsemble(Ensemble):
     """
 
     _kernel = advance_map_transport
+    #: Chaos threshold on the FTLE for the spread's chaotic points (None: the default per step).
+    threshold: float | None = None
 
     def __init__(self, params: MapParams, x0, p0, **kwargs) -> None:
         super().__init__(params, x0, p0, **kwargs)
-        self._start_counting(None, None)
+        self._start_counting(None)
 
-    def _start_counting(self, carry: dict[str, np.ndarray] | None, counts: np.ndarray | None) -> None:
-        if carry is None:
-            carry = initial_carry(self.params, self.array("x"), self.step)
+    def _start_counting(self, transport: TransportState | None) -> None:
+        carry = (
+            initial_carry(self.params, self.array("x"), self.step) if transport is None else transport.carry
+        )
         self._carry = {}
         for name in CARRY_FIELDS:
             values = np.ascontiguousarray(carry[name], dtype=np.int64)
@@ -52,8 +77,12 @@ class TransportEnsemble(Ensemble):
                 raise ValueError(f"carry {name} has shape {values.shape}, expected ({self.points},)")
             self._carry[name] = wp.array(values, dtype=wp.int64, device=self.device)
         self._counts = np.zeros((len(HISTOGRAMS), BINS), dtype=np.int64)
-        if counts is not None:
-            self._counts += np.asarray(counts, dtype=np.int64).reshape(self._counts.shape)
+        self._spread_steps: list[int] = []
+        self._spread: list[np.ndarray] = []
+        if transport is not None:
+            self._counts += np.asarray(transport.counts, dtype=np.int64).reshape(self._counts.shape)
+            self._spread_steps = [int(n) for n in transport.spread_steps]
+            self._spread = [np.array(m, dtype=np.float64) for m in transport.spread]
         self._lock = threading.Lock()
 
     @classmethod
@@ -63,17 +92,33 @@ class TransportEnsemble(Ensemble):
         state: dict[str, np.ndarray],
         step: int,
         *,
-        carry: dict[str, np.ndarray] | None = None,
-        counts: np.ndarray | None = None,
+        transport: TransportState | None = None,
         **kwargs,
     ) -> TransportEnsemble:
         """Rebuild an ensemble from :meth:`state` and :meth:`transport_state` output, exactly.
 
-        Without ``carry`` and ``counts``, counting starts afresh at ``step``.
+        Without ``transport``, counting starts afresh at ``step``.
         """
         obj = super().from_state(params, state, step, **kwargs)
-        obj._start_counting(carry, counts)
+        obj._start_counting(transport)
         return obj
+
+    def run(
+        self,
+        steps: int,
+        observers: Sequence[Observer] | Iterable[Observer] = (),
+        chunk_steps: int | None = None,
+        **kwargs,
+    ) -> TransportEnsemble:
+        """:meth:`Ensemble.run <warpratchet.ensemble.Ensemble.run>`, recording the spread too."""
+        return super().run(steps, [Spread(self), *observers], chunk_steps, **kwargs)
+
+    def record_spread(self, step: int, moments: np.ndarray) -> None:
+        """Append a row of :mod:`.diffusion` (called by its observer at its steps)."""
+        if self._spread_steps and step <= self._spread_steps[-1]:
+            return  # already recorded (a run continued from an archive records nothing twice)
+        self._spread_steps.append(int(step))
+        self._spread.append(np.asarray(moments, dtype=np.float64).reshape(GROUPS, 3))
 
     # Ensemble's subclass hooks: the transport kernel, its carry arrays and a histogram array
     # per launch; the chunked, multi-threaded run loop (and observers) are reused unchanged.
@@ -90,11 +135,28 @@ class TransportEnsemble(Ensemble):
             self._counts += launched.reshape(self._counts.shape)
 
     # -- results ------------------------------------------------------------------------------
-    def transport_state(self) -> tuple[dict[str, np.ndarray], np.ndarray]:
-        """Copies of the carry state (keys ``last_visit, flight_gain, flight_start``, shape
-        ``(points,)`` int64) and of the counts (``(3, BINS)`` int64), at :attr:`step`."""
+    def transport_state(self) -> TransportState:
+        """A copy of the transport state at :attr:`step` (:class:`TransportState`)."""
         carry = {name: np.array(self._carry[name].numpy(), copy=True) for name in CARRY_FIELDS}
-        return carry, self._counts.copy()
+        return TransportState(
+            carry=carry,
+            counts=self._counts.copy(),
+            spread_steps=np.array(self._spread_steps, dtype=np.int64),
+            spread=np.array(self._spread, dtype=np.float64).reshape(len(self._spread), GROUPS, 3),
+        )
+
+    def spread(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(steps, var)``: the recorded steps and ``V(n)``, the variance of ``p_n - p_0`` over the
+        chaotic points (History's ``var_dp_chaotic``), momentum units squared."""
+        var = np.array([pooled_variance(m) for m in self._spread], dtype=np.float64)
+        return np.array(self._spread_steps, dtype=np.int64), var
+
+    def diffusion(self, decades: float | None = None) -> DiffusionFit:
+        """The exponent mu of ``V(n) ~ n^mu`` with its jackknife error (:func:`.fits.diffusion_fit`)."""
+        steps, var = self.spread()
+        moments = np.array(self._spread).reshape(len(self._spread), GROUPS, 3).transpose(1, 0, 2)
+        kwargs = {} if decades is None else {"decades": decades}
+        return diffusion_fit(steps, var, moments if len(self._spread) else None, **kwargs)
 
     def histograms(self) -> Histograms:
         """The completed runs counted so far (:class:`~warpratchet.transport.histograms.Histograms`)."""
@@ -102,5 +164,4 @@ class TransportEnsemble(Ensemble):
 
     def open_runs(self) -> Histograms:
         """The runs still open at :attr:`step`, binned by their length so far."""
-        carry, _ = self.transport_state()
-        return open_runs(carry, self.step)
+        return open_runs(self.transport_state().carry, self.step)
