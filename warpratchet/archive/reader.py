@@ -26,6 +26,7 @@ from ..ensemble import STATE_FIELDS, Ensemble
 from ..params import MapParams
 from ..spec import SAMPLERS, RunSpec, attr_value
 from . import progress
+from . import transport as _transport
 from .checks import check_extent, listed, nonfinite, reading
 from .checks import refresh as _refresh
 from .layout import read_settings
@@ -274,13 +275,23 @@ class Archive:
         an :class:`ArchiveWarning` naming what was recovered instead. A slot the live writer
         recycles while it is read is read again, never reported as damaged.
         """
+        state, step, _ = self.checkpoint_with_transport()
+        return state, step
+
+    def checkpoint_with_transport(self) -> tuple[dict[str, np.ndarray], int, Any]:
+        """:meth:`checkpoint` and, for an archive with the ``transport`` feature, the transport
+        state of that checkpoint (None for the initial state: counting starts there; a slot whose
+        transport state is unreadable is skipped like a damaged one)."""
         problems: list[str] = []
+        transport = None
         for _attempt in range(10):
             problems.clear()
             retry = False
             for step, name in self._slot_steps(problems):
                 try:
                     state = self.read_state(f"checkpoint/{name}")
+                    if _transport.FEATURE in self.features:
+                        transport = _transport.read_slot(self._file, self.path, name, self.points)
                 except ArchiveError as exc:
                     try:
                         again = self._slot_step(name)
@@ -304,36 +315,58 @@ class Archive:
                     problems.append(f"checkpoint at step {step} holds non-finite values ({listed(bad)})")
                     continue
                 self._warn(problems, f"recovered the checkpoint at step {step}")
-                return state, step
+                return state, step, transport
             if not retry:
                 break
         state = self.initial
         if problems:
             self._warn(problems, f"recovered the initial state at step {self.initial_step}")
-        return state, self.initial_step
+        return state, self.initial_step, None
 
     def _warn(self, problems: list[str], outcome: str) -> None:
         if problems:
             warnings.warn(f"{self.path}: {'; '.join(problems)}; {outcome}", ArchiveWarning, stacklevel=3)
 
     def restore(
-        self, state: dict[str, np.ndarray], step: int, threads: int | None = None, device: str | None = None
+        self,
+        state: dict[str, np.ndarray],
+        step: int,
+        threads: int | None = None,
+        device: str | None = None,
+        transport: Any = None,
     ) -> Ensemble:
-        """An :class:`Ensemble` of this archive's run holding ``state`` at ``step``."""
-        return Ensemble.from_state(
-            self.params,
-            state,
-            step,
-            device=device,
-            threads=threads,
-            sampler=self.settings["init"],
-            seed=self.settings["seed"],
-        )
+        """An :class:`Ensemble` of this archive's run holding ``state`` at ``step``.
+
+        For an archive with the ``transport`` feature, a
+        :class:`~warpratchet.transport.TransportEnsemble` with ``transport`` (a ``TransportState``;
+        None: counting starts at ``step``) and the run's threshold.
+        """
+        kwargs = {
+            "device": device,
+            "threads": threads,
+            "sampler": self.settings["init"],
+            "seed": self.settings["seed"],
+        }
+        if _transport.FEATURE not in self.features:
+            return Ensemble.from_state(self.params, state, step, **kwargs)
+        from ..transport import TransportEnsemble
+
+        ensemble = TransportEnsemble.from_state(self.params, state, step, transport=transport, **kwargs)
+        ensemble.threshold = self.settings["threshold"]
+        return ensemble
 
     def ensemble(self, threads: int | None = None, device: str | None = None) -> Ensemble:
         """An :class:`Ensemble` restored bit for bit at the newest good checkpoint."""
-        state, step = self.checkpoint()
-        return self.restore(state, step, threads, device)
+        state, step, transport = self.checkpoint_with_transport()
+        return self.restore(state, step, threads, device, transport)
+
+    @property
+    def transport(self) -> dict[str, np.ndarray] | None:
+        """The ``/transport`` rows (``step`` ``(R,)``, ``counts`` ``(R, 3, BINS)``: completed return
+        gaps and flights per log2 bin at each chunk end), or None without the feature."""
+        if _transport.FEATURE not in self.features:
+            return None
+        return _transport.read_rows(self._file, self.path)
 
     def latest(self) -> dict[str, float | int] | None:
         """The last series row as a dict (None before the first chunk)."""

@@ -45,6 +45,7 @@ from ..ensemble import STATE_FIELDS, Ensemble, Observer
 from ..errors import check_count, check_optional, check_real
 from ..observables import acceleration, lyapunov, summarize
 from . import layout
+from . import transport as _transport
 from .checks import listed, nonfinite
 from .chunking import schedule, sink_min_chunk_steps
 from .names import (
@@ -211,6 +212,8 @@ class ArchiveSink(Observer):
             f = h5py.File(tmp, "w", libver=LIBVER)
             try:
                 layout.create(f, **contents)
+                if _counts_transport(ensemble):
+                    _transport.create(f, ensemble.points)
                 if fill is not None:
                     fill(f)
                 self._start(f, path, ensemble, contents["settings"], contents["indices"], rows, snaps)
@@ -239,6 +242,11 @@ class ArchiveSink(Observer):
         self._series = Rows(f["series"], SERIES_FIELDS, f[counters["series"]], rows)
         self._snapshots = Rows(f["snapshots"], ("step", *SNAPSHOT_FIELDS), f[counters["snapshots"]], snaps)
         self._target_counter = f[counters["target"]]
+        # The transport rows (feature "transport"), behind their own counter; a rebuilt file
+        # (resume) holds the rows its fill put there.
+        self._transport = None
+        if _counts_transport(ensemble):
+            self._transport = _transport.TransportRows(f, int(f["transport"]["rows"][0]))
         self._target = None
         self._row_step = None
         self._lock_fd = None
@@ -305,9 +313,13 @@ class ArchiveSink(Observer):
                 and step // self.snapshot_every > self._last_snapshot // self.snapshot_every
             )
             new_bytes = self._series.growth_bytes() + (self._snapshots.growth_bytes() if snap else 0)
+            if self._transport is not None:
+                new_bytes += self._transport.growth_bytes()
             if new_bytes:
                 ensure_space(self.path, new_bytes, "the next rows")
             self._series.put({name: clocks.get(name, summary.get(name)) for name in SERIES_FIELDS})
+            if self._transport is not None:
+                self._transport.put({"step": step, "counts": ensemble.histograms().counts()})
             if snap:
                 sub = {name: live[name][self._indices] for name in STATE_FIELDS}
                 self._snapshots.put(
@@ -321,6 +333,8 @@ class ArchiveSink(Observer):
                 )
             f.flush()  # rows on disk before the counters that make them valid
             self._series.commit()
+            if self._transport is not None:
+                self._transport.commit()
             if snap:
                 self._snapshots.commit()
                 self._last_snapshot = step
@@ -365,13 +379,17 @@ class ArchiveSink(Observer):
         f = self._file
         free = 1 - self._current if self._current >= 0 else 0
         slot = f["checkpoint"][SLOTS[free]]
+        transport = ensemble.transport_state() if self._transport is not None else None
         with self._writing():
             if slot["x"].id.get_num_chunks() == 0:  # the slot's first use allocates its space
-                ensure_space(self.path, sum(v.nbytes for v in state.values()), "the checkpoint")
+                extra = sum(v.nbytes for v in transport.carry.values()) if transport is not None else 0
+                ensure_space(self.path, sum(v.nbytes for v in state.values()) + extra, "the checkpoint")
             set_counter(slot["step"], -1)  # in progress: neither a reader nor a recovery may trust it
             f.flush()
             for name in STATE_FIELDS:
                 slot[name].write_direct(state[name])
+            if transport is not None:  # the checkpoint is complete only with its transport state
+                _transport.write_slot(f, SLOTS[free], transport)
             sync_h5(f)  # the data is durable before anything points at it
             set_counter(slot["step"], ensemble.step)
             set_counter(f["checkpoint"]["current"], free)
@@ -387,6 +405,8 @@ class ArchiveSink(Observer):
                 with storage_errors(self.path, "write"):
                     self._series.trim()
                     self._snapshots.trim()
+                    if self._transport is not None:
+                        self._transport.trim()
                     f.flush()
                     f.close()
             except BaseException:
@@ -404,3 +424,8 @@ class ArchiveSink(Observer):
         return (
             f"ArchiveSink({self.path!r}, rows={self._series.count}, checkpoint_step={self.checkpoint_step})"
         )
+
+
+def _counts_transport(ensemble: Ensemble) -> bool:
+    """Whether ``ensemble`` counts return times and flights (a ``TransportEnsemble``)."""
+    return callable(getattr(ensemble, "transport_state", None))

@@ -2,7 +2,8 @@
 
 Its flags are the :class:`~warpratchet.spec.RunSpec` fields (``--K --b1 --b2 --points --steps
 --seed --init --threads --device --chunk-steps --threshold``) plus the output options of
-:mod:`.sinks` (``--out`` archive, ``--rerun`` recording). :func:`run_report` and
+:mod:`.sinks` (``--out`` archive, ``--rerun`` recording) and ``--transport`` (return times to B,
+flights, mu and tail exponents: :mod:`warpratchet.transport`). :func:`run_report` and
 :func:`print_report` are also ``resume``'s output.
 """
 
@@ -28,6 +29,12 @@ def add(sub) -> None:
     spec_flags(p, RUN_SETTINGS)
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--transport",
+        action="store_true",
+        help="also count return times to the strip B and flights (log2 histograms), and fit the "
+        'diffusion exponent mu and the tail exponents: adds "transport" to --json (issue 16)',
+    )
     add_archive_flags(p)
     add_rerun_flags(p)
 
@@ -55,7 +62,12 @@ def run_report(ensemble, seconds: float, steps_run: int, threshold: float | None
         **summary,
         "seconds": seconds,
         "point_steps_per_second": ensemble.points * steps_run / seconds if seconds > 0 else None,
+        **({"transport": ensemble.report()} if _counts_transport(ensemble) else {}),
     }
+
+
+def _counts_transport(ensemble) -> bool:
+    return callable(getattr(ensemble, "transport_state", None))
 
 
 def _number(value: float, spec: str) -> str:
@@ -83,6 +95,10 @@ def print_report(report: dict[str, Any], as_json: bool) -> None:
         f"  lyapunov    = {_number(report['lyapunov'], '.6g')} (min {_number(report['lyapunov_min'], '.4g')})"
         f" over {report['chaotic_fraction']:.4f} of the points"
     )
+    if "transport" in report:
+        from ..transport.report import format_transport
+
+        print(format_transport(report["transport"]))
     if report["point_steps_per_second"]:
         print(f"  {report['seconds']:.2f} s, {report['point_steps_per_second'] / 1e6:.0f} M point-steps/s")
 
@@ -92,7 +108,6 @@ def _archive(args: argparse.Namespace, spec: RunSpec, plan: dict[str, Any]):
     import warnings
 
     from ..archive import ArchiveSink, ArchiveWarning
-    from ..ensemble import Ensemble
 
     if "resume" in plan and plan["resume"] == spec.steps:  # complete: report it, touch nothing
         from ..archive import open_archive
@@ -109,15 +124,24 @@ def _archive(args: argparse.Namespace, spec: RunSpec, plan: dict[str, Any]):
             sink, ensemble = ArchiveSink.resume(args.out, threads=spec.threads, device=spec.device)
         print_warnings(caught)
         return sink, ensemble
-    ensemble = Ensemble.sample(
-        spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
-    )
+    ensemble = _sample(args, spec)
     return ArchiveSink(args.out, ensemble, **plan), ensemble
 
 
-def command(args: argparse.Namespace) -> int:
-    from ..ensemble import Ensemble
+def _sample(args: argparse.Namespace, spec: RunSpec):
+    """The run's ensemble: a TransportEnsemble with ``--transport``, else a plain Ensemble."""
+    if args.transport:
+        from ..transport import TransportEnsemble as kind
+    else:
+        from ..ensemble import Ensemble as kind
+    ensemble = kind.sample(
+        spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
+    )
+    ensemble.threshold = spec.threshold
+    return ensemble
 
+
+def command(args: argparse.Namespace) -> int:
     spec = spec_from_args(args)
     plan = archive_plan(args, spec)  # bad archive flags fail before any work
     recorder = rerun_sink(args, spec)  # so do bad recording flags
@@ -130,9 +154,7 @@ def command(args: argparse.Namespace) -> int:
             observers.append(sink)
             chunk_steps = sink.chunk_steps
     else:
-        ensemble = Ensemble.sample(
-            spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
-        )
+        ensemble = _sample(args, spec)
     if recorder is not None:
         observers.append(recorder)  # its frames end chunks themselves (Observer.next_stop)
     first = ensemble.step

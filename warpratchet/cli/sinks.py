@@ -89,7 +89,7 @@ def _resumable(args: argparse.Namespace, spec: RunSpec) -> int:
         raise UsageError(f"{args.out} exists and is not a warpratchet archive; {replace}")
     try:
         with open_archive(args.out) as arc:
-            stored = {**arc.settings, **arc.params.as_dict()}
+            stored = {**arc.settings, **arc.params.as_dict(), "transport": "transport" in arc.features}
             checkpoint = arc.checkpoint_step
     except ArchiveError as exc:
         raise UsageError(f"{exc}; {replace}") from None
@@ -103,6 +103,7 @@ def _resumable(args: argparse.Namespace, spec: RunSpec) -> int:
         "seed": spec.seed,
         "threshold": spec.threshold,
         "snapshot_every": args.snapshot_every,
+        "transport": bool(getattr(args, "transport", False)),
     }
     given = {
         "snapshot_points": args.snapshot_points,

@@ -162,6 +162,12 @@ class TransportEnsemble(Ensemble):
         """The completed runs counted so far (:class:`~warpratchet.transport.histograms.Histograms`)."""
         return Histograms.from_counts(self._counts, self.step)
 
+    def report(self) -> dict:
+        """The ``"transport"`` object of ``run --json`` (:func:`.report.transport_report`)."""
+        from .report import transport_report
+
+        return transport_report(self.histograms(), self.open_runs(), self.diffusion())
+
     def open_runs(self) -> Histograms:
         """The runs still open at :attr:`step`, binned by their length so far."""
         return open_runs(self.transport_state().carry, self.step)

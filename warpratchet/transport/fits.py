@@ -27,7 +27,8 @@ causes no bias. The standard
 error is from the curvature of the log-likelihood (observed Fisher information); ``p_value``
 is the parametric-bootstrap probability of a worse fit (likelihood-ratio statistic against the
 saturated model, 200 multinomial samples from the fitted law, a fixed seed), small when the
-counts are not a power law over the range. The default range starts at bin 3 (``L >= 8``) and
+counts are not a power law over the range (below :data:`P_POWER_LAW` the fit says so:
+``power_law`` is False). The default range starts at bin 3 (``L >= 8``) and
 ends at the last bin whose lengths are below ``steps / 64``: a run of length ``L`` is counted
 only if it ends within the run, so the counts of bin ``k`` are short by at most a fraction
 ``2^(k+1)/steps``; :attr:`TailFit.truncation_bias` bounds the resulting bias of ``alpha``. A
@@ -49,6 +50,7 @@ __all__ = [
     "TAIL_LENGTH_FRACTION",
     "MIN_TAIL_BINS",
     "MIN_TAIL_COUNTS",
+    "P_POWER_LAW",
     "DiffusionFit",
     "diffusion_fit",
     "group_moments",
@@ -67,6 +69,8 @@ GROUPS = 16
 TAIL_FIRST_BIN = 3
 #: The default tail range ends below ``steps * TAIL_LENGTH_FRACTION``.
 TAIL_LENGTH_FRACTION = 1.0 / 64.0
+#: A p-value below this flags the counts as not a power law over the fit range.
+P_POWER_LAW = 0.01
 #: Fewest non-empty bins, and fewest counts, for a tail exponent.
 MIN_TAIL_BINS = 3
 MIN_TAIL_COUNTS = 50
@@ -143,7 +147,8 @@ def diffusion_fit(
         ``V(n)``, momentum units squared (``var_dp_chaotic``).
     moments : ndarray, shape (groups, rows, 3), optional
         :func:`group_moments` of ``p_n - p_0`` over the chaotic points of each group at each row;
-        gives the jackknife standard error (NaN without).
+        gives the jackknife standard error (NaN without). Rows where a group has fewer than 2
+        chaotic points are left out of the fit.
     decades : float
         The fit uses the rows with ``n >= n_last / 10^decades``.
     min_rows : int
@@ -159,6 +164,14 @@ def diffusion_fit(
     if t.size == 0:
         return DiffusionFit(math.nan, math.nan, 0, 0, 0, 0, method, "no rows")
     use = (t >= t[-1] / 10.0**decades) & np.isfinite(v) & (v > 0)
+    m = None
+    if moments is not None:
+        m = np.asarray(moments, dtype=np.float64)
+        if m.ndim != 3 or m.shape[1:] != (t.size, 3) or m.shape[0] < 2:
+            raise ValueError(f"moments must have shape (groups >= 2, {t.size}, 3); got {m.shape}")
+        # A row whose chaotic points leave a group with fewer than 2 (early rows, when the FTLE
+        # threshold still classifies most points as regular) says little about V: left out.
+        use &= np.all(m[:, :, 0] >= 2, axis=0)
     rows = int(use.sum())
     first, last = (int(t[use][0]), int(t[use][-1])) if rows else (0, 0)
     if rows < min_rows:
@@ -166,11 +179,8 @@ def diffusion_fit(
         return DiffusionFit(math.nan, math.nan, first, last, rows, 0, method, reason)
     x = np.log(t[use])
     mu = _slope(x, np.log(v[use]))
-    if moments is None:
+    if m is None:
         return DiffusionFit(mu, math.nan, first, last, rows, 0, method, "no groups of points: no error")
-    m = np.asarray(moments, dtype=np.float64)
-    if m.ndim != 3 or m.shape[1:] != (t.size, 3) or m.shape[0] < 2:
-        raise ValueError(f"moments must have shape (groups >= 2, {t.size}, 3); got {m.shape}")
     groups = m.shape[0]
     leave_out = []
     for g in range(groups):
@@ -276,6 +286,9 @@ class TailFit:
     #: Bound on the bias of ``alpha`` from runs cut off by the end of the run (see module).
     truncation_bias: float
     reason: str | None = None
+    #: ``p_value >= P_POWER_LAW``: the counts are consistent with a power law over the range
+    #: (False: ``alpha`` only summarises a steeper or curved fall-off; None: no fit).
+    power_law: bool | None = None
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -334,7 +347,9 @@ def tail_fit(
         fitted = bin_masses(_newton(sample, first, last, alpha), first, last)
         worse += _deviance(sample, fitted / fitted.sum()) >= observed
     p_value = (worse + 1) / (_BOOTSTRAP + 1)
-    return TailFit(alpha, stderr, first, last, lengths, total, p_value, bias)
+    return TailFit(
+        alpha, stderr, first, last, lengths, total, p_value, bias, power_law=p_value >= P_POWER_LAW
+    )
 
 
 def _truncation_bias(first: int, last: int, steps: int) -> float:
