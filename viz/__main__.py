@@ -15,6 +15,7 @@ COMMANDS = {
     "scenes": "record the paper's phase-space scenes (Figs. 1, 2, 4) as .rrd",
     "record": "replay an archive's snapshots into a rerun .rrd",
     "report": "write docs/validation.md from the sweep files of the figures",
+    "transport": "return-time and flight distributions of a --transport run; periodic orbits on the torus",
 }
 
 
