@@ -34,6 +34,7 @@ _MASK = "unsigned int" if INTERLEAVE == 32 else "unsigned short"
 
 _TYPES = f"""
 typedef unsigned char u8v __attribute__((ext_vector_type({INTERLEAVE})));
+typedef unsigned short u16v __attribute__((ext_vector_type({INTERLEAVE})));
 typedef bool bv __attribute__((ext_vector_type({INTERLEAVE})));
 typedef {_MASK} mask_t;
 """
@@ -97,8 +98,10 @@ __builtin_memcpy(&flen, &acc.flen, N);
 __builtin_memcpy(&valid_bytes, &acc.valid, N);
 const bv valid = __builtin_convertvector(valid_bytes, bv);
 bv visited = __builtin_convertvector(visited_bytes, bv);
-/* cumulative tallies: returns < 2, < 4, < 8; flight ends < 2, < 4, < 8; positive ones < 2, < 4, < 8 */
-long long t[9] = {{0, 0, 0, 0, 0, 0, 0, 0, 0}};
+/* cumulative tallies per lane (at most 8 per block, bytes do not overflow): returns < 2, < 4, < 8;
+   flight ends < 2, < 4, < 8; positive ones < 2, < 4, < 8 */
+u8v t[9];
+for (int i = 0; i < 9; i++) t[i] = 0;
 const u8v one = 1, two = 2, four = 4, eight = 8, seven = 7;
 for (int r = 0; r < rows; r++) {{
     u8v code;
@@ -111,9 +114,9 @@ for (int r = 0; r < rows; r++) {{
     const bv r2 = __builtin_convertvector(age < two, bv);
     const bv r4 = __builtin_convertvector(age < four, bv);
     const bv r8 = __builtin_convertvector(age < eight, bv);
-    t[0] += __builtin_popcount(__builtin_bit_cast(mask_t, visit & r2));
-    t[1] += __builtin_popcount(__builtin_bit_cast(mask_t, visit & r4));
-    t[2] += __builtin_popcount(__builtin_bit_cast(mask_t, visit & r8));
+    t[0] += __builtin_convertvector(visit & r2, u8v) & one;
+    t[1] += __builtin_convertvector(visit & r4, u8v) & one;
+    t[2] += __builtin_convertvector(visit & r8, u8v) & one;
     /* a visit after 8 or more steps (also a first visit, which only resets the tracker) */
     const mask_t long_returns = __builtin_bit_cast(mask_t, in_strip & valid & ~r8);
     /* flights: a step with another gain ends the run in progress (if it gained) */
@@ -123,12 +126,12 @@ for (int r = 0; r < rows; r++) {{
     const bv f2 = __builtin_convertvector(flen < two, bv);
     const bv f4 = __builtin_convertvector(flen < four, bv);
     const bv f8 = __builtin_convertvector(flen < eight, bv);
-    t[3] += __builtin_popcount(__builtin_bit_cast(mask_t, ends & f2));
-    t[4] += __builtin_popcount(__builtin_bit_cast(mask_t, ends & f4));
-    t[5] += __builtin_popcount(__builtin_bit_cast(mask_t, ends & f8));
-    t[6] += __builtin_popcount(__builtin_bit_cast(mask_t, up & f2));
-    t[7] += __builtin_popcount(__builtin_bit_cast(mask_t, up & f4));
-    t[8] += __builtin_popcount(__builtin_bit_cast(mask_t, up & f8));
+    t[3] += __builtin_convertvector(ends & f2, u8v) & one;
+    t[4] += __builtin_convertvector(ends & f4, u8v) & one;
+    t[5] += __builtin_convertvector(ends & f8, u8v) & one;
+    t[6] += __builtin_convertvector(up & f2, u8v) & one;
+    t[7] += __builtin_convertvector(up & f4, u8v) & one;
+    t[8] += __builtin_convertvector(up & f8, u8v) & one;
     /* a run of 8 or more steps ends (also a run that gained nothing, which is not counted) */
     const mask_t long_flights = __builtin_bit_cast(mask_t, ~same & valid & ~f8);
     if ((long_returns | long_flights) != 0) {{
@@ -175,7 +178,7 @@ if ((long_age | long_flen) != 0) {{
     age = __builtin_elementwise_min(age, cap);
     flen = __builtin_elementwise_min(flen, cap);
 }}
-for (int i = 0; i < 9; i++) acc.tallies.c[i] += t[i];
+for (int i = 0; i < 9; i++) acc.tallies.c[i] += __builtin_reduce_add(__builtin_convertvector(t[i], u16v));
 visited_bytes = __builtin_convertvector(visited, u8v);
 __builtin_memcpy(&acc.visited, &visited_bytes, N);
 __builtin_memcpy(&acc.age, &age, N);
