@@ -335,25 +335,13 @@ class Archive:
         device: str | None = None,
         transport: Any = None,
     ) -> Ensemble:
-        """An :class:`Ensemble` of this archive's run holding ``state`` at ``step``.
-
-        For an archive with the ``transport`` feature, a
-        :class:`~warpratchet.transport.TransportEnsemble` with ``transport`` (a ``TransportState``;
-        None: counting starts at ``step``) and the run's threshold.
-        """
-        kwargs = {
-            "device": device,
-            "threads": threads,
-            "sampler": self.settings["init"],
-            "seed": self.settings["seed"],
-        }
+        """An :class:`Ensemble` of this archive's run holding ``state`` at ``step`` (with the
+        ``transport`` feature: :func:`.transport.restore`, counting from ``transport``)."""
+        init, seed = self.settings["init"], self.settings["seed"]
+        kwargs = {"device": device, "threads": threads, "sampler": init, "seed": seed}
         if _transport.FEATURE not in self.features:
             return Ensemble.from_state(self.params, state, step, **kwargs)
-        from ..transport import TransportEnsemble
-
-        ensemble = TransportEnsemble.from_state(self.params, state, step, transport=transport, **kwargs)
-        ensemble.threshold = self.settings["threshold"]
-        return ensemble
+        return _transport.restore(self.params, state, step, transport, self.settings["threshold"], **kwargs)
 
     def ensemble(self, threads: int | None = None, device: str | None = None) -> Ensemble:
         """An :class:`Ensemble` restored bit for bit at the newest good checkpoint."""

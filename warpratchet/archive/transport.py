@@ -31,7 +31,9 @@ from .layout import ROW_CHUNK, STATE_CHUNK, _group, _set_attrs
 from .names import SLOTS, ArchiveError
 from .rows import Rows
 
-__all__ = ["FEATURE", "DESCRIPTIONS", "create", "TransportRows", "write_slot", "read_slot", "read_rows"]
+__all__ = [
+    "FEATURE", "DESCRIPTIONS", "create", "TransportRows", "write_slot", "read_slot", "read_rows", "restore",
+]  # fmt: skip
 
 #: The feature name in ``/@features``.
 FEATURE = "transport"
@@ -140,3 +142,16 @@ def read_rows(f: h5py.File, path: str) -> dict[str, np.ndarray]:
                 raise ArchiveError(f"{path}: /transport/{name} has {ds.shape[0]} rows, {n} are valid")
             out[name] = ds[:n]
         return out
+
+
+def restore(
+    params: Any, state: dict[str, np.ndarray], step: int, transport: Any, threshold: Any, **kwargs: Any
+):
+    """A :class:`~warpratchet.transport.TransportEnsemble` holding ``state`` at ``step``, counting
+    on from ``transport`` (a ``TransportState``; None: counting starts at ``step``), with the
+    run's chaos ``threshold``; ``kwargs`` as :meth:`Ensemble.from_state`."""
+    from ..transport import TransportEnsemble
+
+    ensemble = TransportEnsemble.from_state(params, state, step, transport=transport, **kwargs)
+    ensemble.threshold = threshold
+    return ensemble
