@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 from support import MAP_FLAGS, cli
+from test_archive import _documented_names, _documented_optional, _written_names
 
 from warpratchet import MapParams
 from warpratchet.archive import Archive, ArchiveError, open_archive, verify_archive
@@ -92,3 +93,14 @@ def test_transport_and_plain_archives_are_different_runs(tmp_path):
     assert cli(*small).returncode == 0
     proc = cli(*small, "--transport")
     assert proc.returncode == 2 and "(transport is False in the file, True requested)" in proc.stderr
+
+
+def test_docs_match_a_transport_archive(tmp_path):
+    """docs/archive.md lists exactly what a transport archive writes (the plain names: test_archive)."""
+    out = tmp_path / "run.h5"
+    small = ["run", *MAP_FLAGS, "--points", "100", "--steps", "300", "--quiet", "--transport", "--out"]
+    assert cli(*small, str(out)).returncode == 0
+    documented, written = _documented_names(), _written_names(out)
+    assert {name for name in documented if name.startswith("/transport")} >= {"/transport/b/spread"}
+    assert documented - written <= _documented_optional(), "documented but not written"
+    assert written - documented == set(), "written but not documented"
