@@ -16,6 +16,7 @@ COMMANDS = {
     "record": "replay an archive's snapshots into a rerun .rrd",
     "report": "write docs/validation.md from the sweep files of the figures",
     "history": "plot a run's history (A_n and sigma_n against n) from its archive",
+    "transport": "return-time and flight distributions of a --transport run; periodic orbits on the torus",
 }
 
 

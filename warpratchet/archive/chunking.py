@@ -22,6 +22,7 @@ __all__ = [
     "ROW_SHARE",
     "schedule",
     "sink_min_chunk_steps",
+    "sink_schedule",
     "run_to",
 ]
 
@@ -77,6 +78,16 @@ def sink_min_chunk_steps(ensemble: Ensemble) -> int:
     row = summary * ensemble.points + ROW_IO_SECONDS
     chunk_seconds_per_step = kernel * ensemble.points / threads
     return _nice_at_least(row / (ROW_SHARE * chunk_seconds_per_step))
+
+
+def sink_schedule(
+    ensemble: Ensemble, chunk_steps: int | None, snapshot_every: int, checkpoint_every: int | None
+) -> tuple[int, int]:
+    """:func:`schedule` for an archive of ``ensemble``: bad values refused before any measuring,
+    then the default chunk no shorter than :func:`sink_min_chunk_steps`."""
+    schedule(ensemble.points, chunk_steps, snapshot_every, checkpoint_every)  # bad values: no work
+    floor = sink_min_chunk_steps(ensemble) if chunk_steps is None else MIN_ARCHIVE_CHUNK_STEPS
+    return schedule(ensemble.points, chunk_steps, snapshot_every, checkpoint_every, min_chunk_steps=floor)
 
 
 _MEASURED: dict[tuple, tuple[float, float]] = {}

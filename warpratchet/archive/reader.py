@@ -26,6 +26,7 @@ from ..history import History
 from ..params import MapParams
 from ..spec import SAMPLERS, RunSpec, attr_value
 from . import progress
+from . import transport as _transport
 from .checks import check_extent, reading
 from .checks import refresh as _refresh
 from .history_group import history_info, read_history
@@ -201,37 +202,60 @@ class Archive:
         an :class:`ArchiveWarning` naming what was recovered instead. A slot the live writer
         recycles while it is read is read again, never reported as damaged.
         """
-        found, problems = newest_good(self.path, self._file, self.points)
+        state, step, _ = self.checkpoint_with_transport()
+        return state, step
+
+    def checkpoint_with_transport(self) -> tuple[dict[str, np.ndarray], int, Any]:
+        """:meth:`checkpoint` and, for an archive with the ``transport`` feature, the transport
+        state of that checkpoint (None for the initial state: counting starts there; a slot whose
+        transport state is unreadable is skipped like a damaged one)."""
+        read_extra = None
+        if _transport.FEATURE in self.features:
+
+            def read_extra(slot: str) -> Any:
+                return _transport.read_slot(self._file, self.path, slot, self.points)
+
+        found, problems = newest_good(self.path, self._file, self.points, read_extra)
         if found is not None:
             self._warn(problems, f"recovered the checkpoint at step {found[1]}")
             return found
         state = self.initial
         if problems:
             self._warn(problems, f"recovered the initial state at step {self.initial_step}")
-        return state, self.initial_step
+        return state, self.initial_step, None
 
     def _warn(self, problems: list[str], outcome: str) -> None:
         if problems:
             warnings.warn(f"{self.path}: {'; '.join(problems)}; {outcome}", ArchiveWarning, stacklevel=3)
 
     def restore(
-        self, state: dict[str, np.ndarray], step: int, threads: int | None = None, device: str | None = None
+        self,
+        state: dict[str, np.ndarray],
+        step: int,
+        threads: int | None = None,
+        device: str | None = None,
+        transport: Any = None,
     ) -> Ensemble:
-        """An :class:`Ensemble` of this archive's run holding ``state`` at ``step``."""
-        return Ensemble.from_state(
-            self.params,
-            state,
-            step,
-            device=device,
-            threads=threads,
-            sampler=self.settings["init"],
-            seed=self.settings["seed"],
-        )
+        """An :class:`Ensemble` of this archive's run holding ``state`` at ``step`` (with the
+        ``transport`` feature: :func:`.transport.restore`, counting from ``transport``)."""
+        init, seed = self.settings["init"], self.settings["seed"]
+        kwargs = {"device": device, "threads": threads, "sampler": init, "seed": seed}
+        if _transport.FEATURE not in self.features:
+            return Ensemble.from_state(self.params, state, step, **kwargs)
+        return _transport.restore(self.params, state, step, transport, self.settings["threshold"], **kwargs)
 
     def ensemble(self, threads: int | None = None, device: str | None = None) -> Ensemble:
         """An :class:`Ensemble` restored bit for bit at the newest good checkpoint."""
-        state, step = self.checkpoint()
-        return self.restore(state, step, threads, device)
+        state, step, transport = self.checkpoint_with_transport()
+        return self.restore(state, step, threads, device, transport)
+
+    @property
+    def transport(self) -> dict[str, np.ndarray] | None:
+        """The ``/transport`` rows (``step`` ``(R,)``, ``counts`` ``(R, 3, BINS)``: completed return
+        gaps and flights per log2 bin at each chunk end), or None without the feature."""
+        if _transport.FEATURE not in self.features:
+            return None
+        return _transport.read_rows(self._file, self.path)
 
     @property
     def history(self) -> History | None:

@@ -28,6 +28,7 @@ from .._h5verify import read_rows
 from ..ensemble import STATE_FIELDS, Ensemble
 from ..history import BLOCK_FIELDS, HISTORY_FIELDS, History
 from ..spec import SAMPLERS
+from . import transport as _transport
 from .checks import reading
 from .history_group import history_counts, history_settings, write_history
 from .layout import kernel_constants
@@ -67,6 +68,8 @@ class Salvage:
     series: dict[str, np.ndarray]
     snapshots: Snapshots
     history: History | None = None
+    #: The ``/transport`` rows up to ``step`` (feature ``transport``; else None).
+    transport_rows: dict[str, np.ndarray] | None = None
 
     @property
     def rows(self) -> int:
@@ -90,10 +93,19 @@ class Salvage:
         f[counters["snapshots"]][0] = len(snaps)
         if self.history is not None:
             write_history(f, self.history)
+        if self.transport_rows is not None:
+            g, rows = f["transport"], int(self.transport_rows["step"].size)
+            for name in ("step", "counts"):
+                g[name].resize(rows, axis=0)
+                if rows:
+                    g[name][...] = self.transport_rows[name]
+            g["rows"][0] = rows
         if self.step != self.layout["initial_step"]:
             slot = f["checkpoint"]["a"]
             for name in STATE_FIELDS:
                 slot[name].write_direct(np.ascontiguousarray(self.state[name]))
+            if self.transport_rows is not None:
+                _transport.write_slot(f, "a", self.ensemble.transport_state())
             slot["step"][0] = self.step
             f["checkpoint"]["current"][0] = 0
 
@@ -165,8 +177,13 @@ def salvage(path: str | os.PathLike, *, threads: int | None = None, device: str 
                     f"{path}: written with {key} = {s.get(key)!r} but this kernel uses {ours!r}; "
                     "a resumed run would not continue it bit for bit"
                 )
-        state, step = arc.checkpoint()
-        ensemble = arc.restore(state, step, threads, device)
+        state, step, transport = arc.checkpoint_with_transport()
+        ensemble = arc.restore(state, step, threads, device, transport)
+        transport_rows = None
+        if _transport.FEATURE in arc.features:
+            rows = _transport.read_rows(arc._file, path)
+            kept_rows = rows["step"] <= step
+            transport_rows = {name: values[kept_rows] for name, values in rows.items()}
         series, ok = _readable_rows(arc, "series", SERIES_FIELDS, arc.rows, problems)
         keep = ok & (series["step"] <= step)
         with reading(path, "/snapshots/indices"):
@@ -203,6 +220,7 @@ def salvage(path: str | os.PathLike, *, threads: int | None = None, device: str 
             **{name: snaps[name][kept].reshape(int(kept.sum()), width) for name in SNAPSHOT_FIELDS},
         ),
         history=history,
+        transport_rows=transport_rows,
     )
 
 

@@ -10,6 +10,9 @@ by format v1 releases) is skipped and described. docs/archive.md has the whole s
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import h5py
 import numpy as np
 
@@ -67,10 +70,12 @@ def slot_steps(path: str, f: h5py.File, problems: list[str] | None = None) -> li
 
 
 def newest_good(
-    path: str, f: h5py.File, points: int
-) -> tuple[tuple[dict[str, np.ndarray], int] | None, list[str]]:
-    """``((state, step) or None, problems)``: the newest slot whose data verify and are finite.
+    path: str, f: h5py.File, points: int, read_extra: Callable[[str], Any] | None = None
+) -> tuple[tuple[dict[str, np.ndarray], int, Any] | None, list[str]]:
+    """``((state, step, extra) or None, problems)``: the newest slot whose data verify and are finite.
 
+    ``read_extra(slot)`` reads what a feature keeps beside the state in a slot (the transport
+    state); it raises :class:`ArchiveError` like a damaged state, and ``extra`` is None without it.
     ``problems`` describes the slots skipped on the way (the caller warns); None when no slot is
     good (the caller falls back to the initial state).
     """
@@ -81,6 +86,7 @@ def newest_good(
         for step, name in slot_steps(path, f, problems):
             try:
                 state = read_state(path, f, f"checkpoint/{name}", points)
+                extra = read_extra(name) if read_extra is not None else None
             except ArchiveError as exc:
                 try:
                     again = slot_step(path, f, name)
@@ -103,25 +109,36 @@ def newest_good(
             if bad:
                 problems.append(f"checkpoint at step {step} holds non-finite values ({listed(bad)})")
                 continue
-            return (state, step), problems
+            return (state, step, extra), problems
         if not retry:
             break
     return None, problems
 
 
-def write_slot(path: str, f: h5py.File, free: int, state: dict[str, np.ndarray], step: int) -> None:
+def write_slot(
+    path: str,
+    f: h5py.File,
+    free: int,
+    state: dict[str, np.ndarray],
+    step: int,
+    write_extra: Callable[[str], None] | None = None,
+    extra_bytes: int = 0,
+) -> None:
     """Write the finite ``state`` at ``step`` into slot ``SLOTS[free]``, then make it current.
 
-    The caller has checked ``state`` is finite and turns a refused write into its error; a kill at
-    any point leaves the other slot current and intact.
+    ``write_extra(slot)`` writes what a feature keeps beside the state (``extra_bytes`` of it):
+    the checkpoint is complete only with it. The caller has checked ``state`` is finite and turns
+    a refused write into its error; a kill at any point leaves the other slot current and intact.
     """
     slot = f["checkpoint"][SLOTS[free]]
     if slot["x"].id.get_num_chunks() == 0:  # the slot's first use allocates its space
-        ensure_space(path, sum(v.nbytes for v in state.values()), "the checkpoint")
+        ensure_space(path, sum(v.nbytes for v in state.values()) + extra_bytes, "the checkpoint")
     set_counter(slot["step"], -1)  # in progress: neither a reader nor a recovery may trust it
     f.flush()
     for name in STATE_FIELDS:
         slot[name].write_direct(state[name])
+    if write_extra is not None:
+        write_extra(SLOTS[free])
     sync_h5(f)  # the data is durable before anything points at it
     set_counter(slot["step"], step)
     set_counter(f["checkpoint"]["current"], free)

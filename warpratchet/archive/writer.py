@@ -22,11 +22,13 @@ from __future__ import annotations
 
 import contextlib
 import datetime
+import functools
 import os
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from typing import Any
 
+import h5py
 import numpy as np
 
 from .._files import (
@@ -44,9 +46,10 @@ from ..history import History
 from ..observables import summarize
 from ..spec import check_setting
 from . import layout
+from . import transport as _transport
 from .building import as_archive_error, build_file
 from .checks import listed, nonfinite
-from .chunking import schedule, sink_min_chunk_steps
+from .chunking import sink_schedule
 from .history_group import HistoryWriter, check_history
 from .names import (
     COUNTERS,
@@ -141,16 +144,7 @@ class ArchiveSink(Observer):
             history.subsample(ensemble)
         with as_archive_error():
             exists = check_new_path(path, force=force, hint=" (use force=True / --force)")
-        schedule(ensemble.points, chunk_steps, snapshot_every, checkpoint_every)  # bad values: no work
-        if chunk_steps is None:
-            min_chunk = sink_min_chunk_steps(ensemble)
-            chunk_steps, checkpoint_every = schedule(
-                ensemble.points, None, snapshot_every, checkpoint_every, min_chunk_steps=min_chunk
-            )
-        else:
-            chunk_steps, checkpoint_every = schedule(
-                ensemble.points, chunk_steps, snapshot_every, checkpoint_every
-            )
+        chunk_steps, checkpoint_every = sink_schedule(ensemble, chunk_steps, snapshot_every, checkpoint_every)
         initial = {name: ensemble.array(name) for name in STATE_FIELDS}
         bad = nonfinite(initial)
         if bad:
@@ -190,15 +184,32 @@ class ArchiveSink(Observer):
         self._last_snapshot = ensemble.step
 
     def _build(
-        self, path: str, contents: dict[str, Any], ensemble: Ensemble, *, rows: int = 0, snaps: int = 0, **how
+        self,
+        path: str,
+        contents: dict[str, Any],
+        ensemble: Ensemble,
+        *,
+        rows: int = 0,
+        snaps: int = 0,
+        fill: Callable[[h5py.File], None] | None = None,
+        **how,
     ) -> None:
-        """Create the file (:func:`.building.build_file`, keywords ``how``), bind it to this sink
-        holding ``rows`` series rows and ``snaps`` snapshots, and take a shared lock on it."""
-        build_file(path, contents, lambda f: self._start(f, path, ensemble, contents, rows, snaps), **how)
+        """Create the file (:func:`.building.build_file`, keywords ``how``), with a ``/transport``
+        group for a transport ensemble, ``fill`` it, bind it to this sink holding ``rows`` series
+        rows and ``snaps`` snapshots, and take a shared lock on it."""
+
+        def fill_all(f: h5py.File) -> None:
+            if _transport.counts_transport(ensemble):
+                _transport.create(f, ensemble.points)
+            if fill is not None:
+                fill(f)
+
+        start = functools.partial(self._start, path, ensemble, contents, rows, snaps)  # then the file
+        build_file(path, contents, start, fill=fill_all, **how)
         self._lock_fd = os.open(path, os.O_RDONLY)
         try_lock(self._lock_fd, exclusive=False)
 
-    def _start(self, f, path, ensemble, contents, rows, snaps) -> None:
+    def _start(self, path, ensemble, contents, rows, snaps, f) -> None:
         """Enter SWMR mode and bind the open file to this sink."""
         settings, indices, history = contents["settings"], contents["indices"], contents.get("history")
         f.swmr_mode = True
@@ -215,11 +226,15 @@ class ArchiveSink(Observer):
         self._indices = indices
         #: The run's :class:`~warpratchet.history.History` kept in ``/history`` (None without one).
         self.history = history
-        self._history = (
-            None
-            if history is None
-            else HistoryWriter(f, history, len(history.rows["step"]), len(history.block_rows["block_step"]))
-        )
+        # The optional row groups written with each series row: /history, /transport.
+        self._groups = []
+        if history is not None:
+            kept = len(history.rows["step"]), len(history.block_rows["block_step"])
+            self._groups.append(HistoryWriter(f, history, *kept))
+        self._transport = None
+        if _transport.counts_transport(ensemble):
+            self._transport = _transport.TransportWriter(f)
+            self._groups.append(self._transport)
         counters = COUNTERS[FORMAT_VERSION]
         self._series = Rows(f["series"], SERIES_FIELDS, f[counters["series"]], rows)
         self._snapshots = Rows(f["snapshots"], ("step", *SNAPSHOT_FIELDS), f[counters["snapshots"]], snaps)
@@ -286,27 +301,26 @@ class ArchiveSink(Observer):
                     f"{self.path}: the state at step {step} is not finite ({exc}); not archived: "
                     f"the archive keeps its checkpoint at step {self.checkpoint_step}"
                 ) from None
-            if self._history is not None:
-                self._history.record(ensemble)
+            for group in self._groups:
+                group.record(ensemble)
             clocks = {"wall_time": seconds, "unix_time": time.time()}
             snap = (
                 self.snapshot_every
                 and step // self.snapshot_every > self._last_snapshot // self.snapshot_every
             )
             new_bytes = self._series.growth_bytes() + (self._snapshots.growth_bytes() if snap else 0)
-            if self._history is not None:
-                new_bytes += self._history.growth_bytes()
+            new_bytes += sum(group.growth_bytes() for group in self._groups)
             if new_bytes:
                 ensure_space(self.path, new_bytes, "the next rows")
             self._series.put({name: clocks.get(name, summary.get(name)) for name in SERIES_FIELDS})
             if snap:
                 self._snapshots.put(snapshot_row(live, self._indices, step))
-            if self._history is not None:
-                self._history.put()
+            for group in self._groups:
+                group.put()
             f.flush()  # rows on disk before the counters that make them valid
             self._series.commit()
-            if self._history is not None:
-                self._history.commit()
+            for group in self._groups:
+                group.commit()
             if snap:
                 self._snapshots.commit()
                 self._last_snapshot = step
@@ -349,8 +363,11 @@ class ArchiveSink(Observer):
                 f"at step {self.checkpoint_step}"
             )
         free = 1 - self._current if self._current >= 0 else 0
+        extra, extra_bytes = None, 0
+        if self._transport is not None:  # the checkpoint is complete only with its transport state
+            extra, extra_bytes = self._transport.slot_extra(ensemble)
         with self._writing():
-            write_slot(self.path, self._file, free, state, ensemble.step)
+            write_slot(self.path, self._file, free, state, ensemble.step, extra, extra_bytes)
         self._current = free
         self.checkpoint_step = ensemble.step
 
@@ -362,8 +379,8 @@ class ArchiveSink(Observer):
                 with storage_errors(self.path, "write"):
                     self._series.trim()
                     self._snapshots.trim()
-                    if self._history is not None:
-                        self._history.trim()
+                    for group in self._groups:
+                        group.trim()
                     f.flush()
                     f.close()
             except BaseException:

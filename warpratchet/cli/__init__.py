@@ -1,10 +1,11 @@
 """The ``warpratchet`` command.
 
 One module per subcommand (:mod:`.theory`, :mod:`.run`, :mod:`.resume`, :mod:`.inspect`,
-:mod:`.sweep`, :mod:`.sumrule`, :mod:`.verify`, :mod:`.figures`), each with ``add(subparsers)`` declaring
-its flags and ``command(args)`` running it; :mod:`.common` holds what they share (the one-line
-error, JSON output, flags built from :class:`~warpratchet.spec.RunSpec`), :mod:`.sinks` the output
-options of ``run``. Bad input (argparse errors, ``ValueError`` from the API, unreadable files)
+:mod:`.sweep`, :mod:`.sumrule`, :mod:`.orbits`, :mod:`.verify`, :mod:`.figures`), each with
+``add(subparsers)`` declaring its flags and ``command(args)`` running it; :mod:`.common` holds
+what they share (the one-line error, JSON output, flags built from
+:class:`~warpratchet.spec.RunSpec`), :mod:`.sinks` the output options of ``run``. Bad input
+(argparse errors, ``ValueError`` from the API, unreadable files)
 prints one line on stderr and exits with status 2, never a traceback; a write the system refuses
 (disk full, read-only, permissions: :class:`warpratchet._files.StorageError`) one line and
 status 1; Ctrl-C prints one line (where it stopped, what was kept: :class:`.common.Interrupted`)
@@ -21,7 +22,7 @@ import re
 import sys
 from collections.abc import Sequence
 
-from . import figures, inspect, resume, run, sumrule, sweep, theory, verify
+from . import figures, inspect, orbits, resume, run, sumrule, sweep, theory, verify
 from .common import (
     Interrupted,
     Parser,
@@ -52,6 +53,7 @@ SUBCOMMANDS = {
     "verify": verify,
     "sweep": sweep,
     "sumrule": sumrule,
+    "orbits": orbits,
     "figures": figures,
 }
 
@@ -75,6 +77,7 @@ EXAMPLES = {
     "run": [
         "warpratchet run --K 3 --b1 0.1 --b2 0.01 --points 10000 --steps 120000",
         "warpratchet run --K 3 --b1 0.1 --b2 0.01 --json --quiet",
+        "warpratchet run --K 3 --b1 0.1 --b2 0.01 --points 10000 --steps 120000 --transport",
         "warpratchet run --K 3 --b1 0.1 --b2 0.01 --out run.h5 --snapshot-every 10000",
         "warpratchet run --K 3 --b1 0.1 --b2 0.01 --steps 20000 --rerun run.rrd   (then: rerun run.rrd)",
     ],
@@ -89,6 +92,11 @@ EXAMPLES = {
     "sumrule": [
         "warpratchet sumrule --K 2.99 --b1 0.25 --b2 0.05 --points 100000 --steps 30000",
         "warpratchet sumrule --K 3 --b1 0.1 --b2 0.01 --grid 300 --classifier megno --json",
+    ],
+    "orbits": [
+        "warpratchet orbits --K 3 --b1 0.1 --b2 0.01 --period 1 --json",
+        "warpratchet orbits --K 2.99 --b1 0.25 --b2 0.05 --period 6",
+        "warpratchet orbits --K 3 --b1 0.1 --b2 0.01 --period 10 --long   (minutes)",
     ],
 }
 

@@ -2,7 +2,8 @@
 
 Its flags are the :class:`~warpratchet.spec.RunSpec` fields (``--K --b1 --b2 --points --steps
 --seed --init --threads --device --chunk-steps --threshold``) plus the output options of
-:mod:`.sinks` (``--out`` archive, ``--rerun`` recording). :func:`run_report` and
+:mod:`.sinks` (``--out`` archive, ``--rerun`` recording) and ``--transport`` (return times to B,
+flights, mu and tail exponents: :mod:`warpratchet.transport`). :func:`run_report` and
 :func:`print_report` are also ``resume``'s output.
 """
 
@@ -28,6 +29,12 @@ def add(sub) -> None:
     spec_flags(p, RUN_SETTINGS)
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--transport",
+        action="store_true",
+        help="also count return times to the strip B and flights (log2 histograms), and fit the "
+        'diffusion exponent mu and the tail exponents: adds "transport" to --json (issue 16)',
+    )
     add_archive_flags(p)
     add_rerun_flags(p)
 
@@ -58,7 +65,12 @@ def run_report(ensemble, seconds: float, steps_run: int, threshold: float | None
         **summary,
         "seconds": seconds,
         "point_steps_per_second": ensemble.points * steps_run / seconds if seconds > 0 else None,
+        **({"transport": ensemble.report()} if _counts_transport(ensemble) else {}),
     }
+
+
+def _counts_transport(ensemble) -> bool:
+    return callable(getattr(ensemble, "transport_state", None))
 
 
 def _number(value: float, spec: str) -> str:
@@ -92,6 +104,10 @@ def print_report(report: dict[str, Any], as_json: bool) -> None:
             f"(z = {_number(report['drift_z'], '+.2f')}), robust stderr "
             f"{_number(report['A_stderr_robust'], '.2g')}: {report['verdict']}"
         )
+    if "transport" in report:
+        from ..transport.report import format_transport
+
+        print(format_transport(report["transport"]))
     if report["point_steps_per_second"]:
         print(f"  {report['seconds']:.2f} s, {report['point_steps_per_second'] / 1e6:.0f} M point-steps/s")
 
@@ -129,7 +145,6 @@ def _archive(args: argparse.Namespace, spec: RunSpec, plan: dict[str, Any], hist
     import warnings
 
     from ..archive import ArchiveSink, ArchiveWarning
-    from ..ensemble import Ensemble
 
     if "resume" in plan and plan["resume"] == spec.steps:  # complete: report it, touch nothing
         from ..archive import open_archive
@@ -148,14 +163,24 @@ def _archive(args: argparse.Namespace, spec: RunSpec, plan: dict[str, Any], hist
         print_warnings(caught)
         # An archive written before histories existed: record this session's rows, not archived.
         return sink, ensemble, sink.history or history
-    ensemble = Ensemble.sample(
-        spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
-    )
+    ensemble = _sample(args, spec)
     return ArchiveSink(args.out, ensemble, history=history, **plan), ensemble, history
 
 
+def _sample(args: argparse.Namespace, spec: RunSpec):
+    """The run's ensemble: a TransportEnsemble with ``--transport``, else a plain Ensemble."""
+    if args.transport:
+        from ..transport import TransportEnsemble as kind
+    else:
+        from ..ensemble import Ensemble as kind
+    ensemble = kind.sample(
+        spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
+    )
+    ensemble.threshold = spec.threshold
+    return ensemble
+
+
 def command(args: argparse.Namespace) -> int:
-    from ..ensemble import Ensemble
     from ..history import History
 
     spec = spec_from_args(args)
@@ -173,9 +198,7 @@ def command(args: argparse.Namespace) -> int:
             observers.append(sink)
             chunk_steps = sink.chunk_steps
     else:
-        ensemble = Ensemble.sample(
-            spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
-        )
+        ensemble = _sample(args, spec)
         observers.append(history)
     if recorder is not None:
         observers.append(recorder)  # its frames end chunks themselves (Observer.next_stop)

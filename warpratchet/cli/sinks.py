@@ -90,7 +90,7 @@ def _resumable(args: argparse.Namespace, spec: RunSpec) -> int:
         raise UsageError(f"{args.out} exists and is not a warpratchet archive; {replace}")
     try:
         with open_archive(args.out) as arc:
-            stored = {**arc.settings, **arc.params.as_dict()}
+            stored = {**arc.settings, **arc.params.as_dict(), "transport": "transport" in arc.features}
             checkpoint = arc.checkpoint_step
     except ArchiveError as exc:
         raise UsageError(f"{exc}; {replace}") from None
@@ -105,6 +105,7 @@ def _resumable(args: argparse.Namespace, spec: RunSpec) -> int:
         "threshold": spec.threshold,
         "threshold_rule": spec.threshold_rule,
         "snapshot_every": args.snapshot_every,
+        "transport": bool(getattr(args, "transport", False)),
     }
     given = {
         "snapshot_points": args.snapshot_points,

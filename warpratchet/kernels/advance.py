@@ -49,9 +49,10 @@ class Variant:
         after_step(ref accumulators, ref Lanes, global_step: int64)
         after_check(ref accumulators, ref Lanes, check: int64)
 
-    ``cpu_after_step``, ``cpu_after_check``: optional replacements used with the CPU body (e.g.
-    a ``wp.func_native`` on whole lane vectors); they must give bitwise the same results, which
-    ``tests/test_kernels.py`` checks for the package's variants (add a new one there).
+    ``cpu_after_step``, ``cpu_after_check``, ``cpu_store``: optional replacements used with the
+    CPU body (e.g. a ``wp.func_native`` on whole lane vectors; ``cpu_store`` for a variant whose
+    CPU hooks defer work to the end of the launch); they must give bitwise the same results,
+    which ``tests/test_kernels.py`` checks for the package's variants (add a new one there).
     """
 
     name: str
@@ -63,15 +64,17 @@ class Variant:
     after_check: Any
     cpu_after_step: Any = None
     cpu_after_check: Any = None
+    cpu_store: Any = None
 
 
 def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kernel:
     check_mask = wp.int64(RENORM_CHECK_EVERY - 1)
     check_shift = wp.int64(RENORM_CHECK_EVERY.bit_length() - 1)
-    after_step, after_check = variant.after_step, variant.after_check
+    after_step, after_check, store = variant.after_step, variant.after_check, variant.store
     if body is CPU:
         after_step = variant.cpu_after_step or after_step
         after_check = variant.cpu_after_check or after_check
+        store = variant.cpu_store or store
 
     def advance(state: State, extra: variant.arrays, step0: wp.int64, steps: int, p: Coefficients):
         tid = wp.tid()
@@ -88,7 +91,7 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
                 wp.static(body.renorm)(s)
                 wp.static(after_check)(acc, s, global_step >> wp.static(check_shift))
         wp.static(body.store)(state, s, first, spacing, n)
-        wp.static(variant.store)(extra, acc, first, spacing, n)
+        wp.static(store)(extra, acc, first, spacing, n)
 
     wp.set_module_options(options, module)
     return wp.kernel(advance, name=f"advance_{variant.name}", module=module)

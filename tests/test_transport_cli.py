@@ -1,0 +1,108 @@
+"""``warpratchet run --transport``: the JSON keys, the archive's /transport group, exact resume.
+
+A run killed (SIGKILL) partway and run again with the same command must end with the same
+histograms, carry state, spread rows and report as one that was never interrupted, bit for bit.
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+from support import MAP_FLAGS, cli
+from test_archive import _documented_names, _documented_optional, _written_names
+
+from warpratchet import MapParams
+from warpratchet.archive import Archive, ArchiveError, open_archive, verify_archive
+from warpratchet.transport import CARRY_FIELDS, TransportEnsemble
+
+POINTS, SEED, STEPS = 1500, 7, 60_000
+RUN = ["run", *MAP_FLAGS, "--points", str(POINTS), "--seed", str(SEED), "--steps", str(STEPS)]
+RUN += ["--chunk-steps", "100", "--checkpoint-every", "500", "--quiet", "--json", "--transport"]
+
+
+def test_json_has_the_histograms_mu_and_tail_exponents():
+    proc = cli("run", *MAP_FLAGS, "--points", "500", "--steps", "3000", "--quiet", "--json", "--transport")
+    assert proc.returncode == 0, proc.stderr
+    t = json.loads(proc.stdout)["transport"]
+    assert set(t["return_times"]) == {"edges", "counts", "open"}
+    assert set(t["flights"]) == {"edges", "counts_plus", "counts_minus", "open_plus", "open_minus"}
+    assert len(t["return_times"]["edges"]) == len(t["return_times"]["counts"]) + 1
+    assert t["return_times"]["edges"][:3] == [1, 2, 4]
+    assert isinstance(t["mu"], float) and isinstance(t["mu_stderr"], float) and t["mu_fit"]["groups"] == 16
+    assert set(t["tail_exponents"]) == {"return_times", "flights_plus", "flights_minus"}
+    ens = TransportEnsemble.sample(MapParams(3.0, 0.1, 0.01), 500, "strip", 0)
+    ens.run(3000)
+    h = ens.histograms()
+    assert t["return_times"]["counts"] == h.return_times[: len(t["return_times"]["counts"])].tolist()
+    assert t["flights"]["counts_plus"] == h.flights_plus[: len(t["flights"]["counts_plus"])].tolist()
+    text = cli("run", *MAP_FLAGS, "--points", "500", "--steps", "3000", "--quiet", "--transport").stdout
+    assert "mu          =" in text and "flights +" in text and "returns" in text
+
+
+def _rows(path) -> int:
+    try:
+        with Archive(path, locking=False) as arc:
+            return arc.rows
+    except (FileNotFoundError, ArchiveError, OSError):
+        return 0
+
+
+def test_a_killed_run_resumed_equals_an_uninterrupted_one_bit_for_bit(tmp_path):
+    whole, killed = str(tmp_path / "whole.h5"), str(tmp_path / "killed.h5")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "warpratchet.cli", *RUN, "--out", killed],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    start = time.monotonic()
+    while proc.poll() is None and _rows(killed) < 40 and time.monotonic() - start < 60:
+        time.sleep(0.005)
+    proc.send_signal(signal.SIGKILL)
+    proc.communicate(timeout=60)
+    with open_archive(killed) as arc:
+        assert 0 < arc.checkpoint_step < STEPS  # killed partway, with a checkpoint to resume from
+    again = cli(*RUN, "--out", killed)
+    reference = cli(*RUN, "--out", whole)
+    assert again.returncode == 0 and reference.returncode == 0, again.stderr + reference.stderr
+    got, expected = json.loads(again.stdout), json.loads(reference.stdout)
+    assert got["transport"] == expected["transport"] and got["A"] == expected["A"]
+    with open_archive(killed) as a, open_archive(whole) as b:
+        assert a.features == b.features == ("history", "transport")  # run keeps its history too
+        for name, values in b.history.as_dict().items():
+            np.testing.assert_array_equal(a.history.as_dict()[name], values)
+        for name in ("step", "counts"):
+            np.testing.assert_array_equal(a.transport[name], b.transport[name])
+        ea, eb = a.ensemble(), b.ensemble()
+        ta, tb = ea.transport_state(), eb.transport_state()
+        np.testing.assert_array_equal(ta.counts, tb.counts)
+        np.testing.assert_array_equal(ta.spread, tb.spread)
+        for name in CARRY_FIELDS:
+            np.testing.assert_array_equal(ta.carry[name], tb.carry[name])
+        assert ea.step == STEPS and a.transport["step"][-1] == STEPS
+        np.testing.assert_array_equal(a.transport["counts"][-1], ta.counts)
+    assert verify_archive(killed)[0] == []
+
+
+def test_transport_and_plain_archives_are_different_runs(tmp_path):
+    out = str(tmp_path / "run.h5")
+    small = ["run", *MAP_FLAGS, "--points", "100", "--steps", "300", "--quiet", "--out", out]
+    assert cli(*small).returncode == 0
+    proc = cli(*small, "--transport")
+    assert proc.returncode == 2 and "(transport is False in the file, True requested)" in proc.stderr
+
+
+def test_docs_match_a_transport_archive(tmp_path):
+    """docs/archive.md lists exactly what a transport archive writes (the plain names: test_archive)."""
+    out = tmp_path / "run.h5"
+    small = ["run", *MAP_FLAGS, "--points", "100", "--steps", "300", "--quiet", "--transport", "--out"]
+    assert cli(*small, str(out)).returncode == 0
+    documented, written = _documented_names(), _written_names(out)
+    assert {name for name in documented if name.startswith("/transport")} >= {"/transport/b/spread"}
+    assert documented - written <= _documented_optional(), "documented but not written"
+    assert written - documented == set(), "written but not documented"

@@ -1,0 +1,139 @@
+"""The exponents of issue 16 on synthetic data with known exponents (warpratchet.transport.fits).
+
+Tolerances are the fits' own standard errors (3 of them); the calibration tests check those
+errors against the scatter of independent replicas.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from warpratchet import History, MapParams
+from warpratchet.transport import TransportEnsemble
+from warpratchet.transport.diffusion import spread_steps
+from warpratchet.transport.fits import (
+    bin_masses,
+    default_tail_bins,
+    diffusion_fit,
+    group_moments,
+    pooled_variance,
+    tail_fit,
+)
+
+
+def _log2_counts(lengths: np.ndarray) -> np.ndarray:
+    return np.bincount(np.floor(np.log2(lengths)).astype(int), minlength=64)
+
+
+@pytest.mark.parametrize("alpha", [1.5, 2.0, 2.7])
+def test_tail_fit_recovers_the_exponent_of_a_discrete_power_law(alpha):
+    """Zipf samples, P(L) = L^-alpha / zeta(alpha): the fit over bins 3.. is within 3 stderr."""
+    lengths = np.random.default_rng(7).zipf(alpha, size=300_000)
+    fit = tail_fit(_log2_counts(lengths[lengths < 2**40]), steps=10**9)
+    assert (fit.first_bin, fit.last_bin) == default_tail_bins(10**9) == (3, 22)
+    assert abs(fit.alpha - alpha) < 3 * fit.stderr, fit
+    assert fit.p_value > 0.001 and fit.power_law is (fit.p_value >= 0.01)
+    assert fit.truncation_bias < 0.03
+
+
+def test_tail_fit_errors_match_the_scatter_of_replicas():
+    """30 independent samples: the spread of the estimates is the reported standard error."""
+    rng = np.random.default_rng(11)
+    fits = [tail_fit(_log2_counts(rng.zipf(2.2, size=20_000)), steps=10**6, last_bin=12) for _ in range(30)]
+    alphas = np.array([f.alpha for f in fits])
+    stderr = np.mean([f.stderr for f in fits])
+    # The sample standard deviation of 30 normal values is within 30% of sigma with prob. > 0.99.
+    assert 0.7 < alphas.std(ddof=1) / stderr < 1.3
+    assert abs(alphas.mean() - 2.2) < 3 * stderr / math.sqrt(30)
+
+
+def test_tail_fit_flags_lengths_that_are_not_a_power_law():
+    """Geometric lengths (an exponential tail) give a tiny p-value."""
+    lengths = np.random.default_rng(3).geometric(0.02, size=200_000)
+    fit = tail_fit(_log2_counts(lengths), steps=10**7, last_bin=9)
+    assert fit.p_value < 0.01 and fit.power_law is False
+
+
+def test_tail_fit_refuses_too_few_counts_and_says_why():
+    counts = np.zeros(64, dtype=np.int64)
+    counts[:2] = [1000, 500]  # returns at K = 3: 1 to 3 steps, nothing in the tail
+    fit = tail_fit(counts, steps=10**6)
+    assert math.isnan(fit.alpha) and "a tail exponent needs 50 counts in 3 bins" in fit.reason
+    short = tail_fit(counts, steps=100)  # lengths below 100/64: no bin
+    assert math.isnan(short.alpha) and "empty fit range" in short.reason
+
+
+def test_bin_masses_sum_the_power_law_over_each_bin():
+    for alpha in (0.5, 1.0, 2.5):
+        for k in (2, 7, 10):
+            direct = float(np.sum(np.arange(2**k, 2 ** (k + 1), dtype=np.float64) ** -alpha))
+            assert bin_masses(alpha, k, k)[0] == pytest.approx(direct, rel=1e-8)
+
+
+def _walks(rng, points, steps, velocity):
+    """Walkers observed at ``steps``: Brownian (exact Gaussian increments) plus ``velocity * n``."""
+    out = np.zeros((len(steps), points))
+    x, previous = np.zeros(points), 0
+    v = rng.standard_normal(points)
+    for i, n in enumerate(steps):
+        x = x + math.sqrt(n - previous) * rng.standard_normal(points)
+        out[i] = x + velocity * v * n
+        previous = n
+    return out
+
+
+def _moments(values, groups=16):
+    index = np.arange(values.shape[1]) % groups
+    return np.stack([group_moments(row, index, groups) for row in values], axis=1)
+
+
+@pytest.mark.parametrize(("velocity", "mu"), [(0.0, 1.0), (30.0, 2.0)])
+def test_diffusion_fit_recovers_mu_of_brownian_and_ballistic_spreading(velocity, mu):
+    """Var ~ n (Brownian) and ~ n^2 (constant velocities, dominant from n ~ 1): mu within 3 se."""
+    steps = spread_steps(0, 10**6)
+    values = _walks(np.random.default_rng(5), 4000, steps, velocity)
+    moments = _moments(values)
+    var = np.array([pooled_variance(moments[:, i]) for i in range(len(steps))])
+    np.testing.assert_allclose(var, values.var(axis=1, ddof=1), rtol=1e-10)
+    fit = diffusion_fit(steps, var, moments)
+    assert (fit.first_step, fit.last_step, fit.rows, fit.groups) == (10**4, 10**6, 17, 16)
+    assert abs(fit.mu - mu) < 3 * fit.stderr + (2e-3 if velocity else 0.0), fit  # ballistic: 1/(900 n) bias
+    assert 0 < fit.stderr < 0.05
+
+
+def test_diffusion_fit_errors_match_the_scatter_of_replicas():
+    rng = np.random.default_rng(9)
+    steps = spread_steps(0, 10**5)
+    fits = []
+    for _ in range(30):
+        moments = _moments(_walks(rng, 800, steps, 0.0))
+        var = np.array([pooled_variance(moments[:, i]) for i in range(len(steps))])
+        fits.append(diffusion_fit(steps, var, moments))
+    mus = np.array([f.mu for f in fits])
+    stderr = np.mean([f.stderr for f in fits])
+    assert 0.6 < mus.std(ddof=1) / stderr < 1.4  # jackknife: ~ +-15% scatter of its own
+    assert abs(mus.mean() - 1.0) < 3 * stderr / math.sqrt(30)
+
+
+def test_diffusion_fit_without_rows_or_groups_says_why():
+    assert "rows" in diffusion_fit([10, 100], [1.0, 10.0]).reason
+    no_groups = diffusion_fit([100, 200, 400, 1000], [100.0, 200.0, 400.0, 1000.0])
+    assert (
+        no_groups.mu == pytest.approx(1.0) and math.isnan(no_groups.stderr) and "no error" in no_groups.reason
+    )
+
+
+def test_the_spread_of_a_transport_run_is_historys_variance():
+    """V(n) pooled from the groups equals History's var_dp_chaotic at the steps both record."""
+    p = MapParams(3.0, 0.1, 0.01)
+    history = History()
+    ens = TransportEnsemble.sample(p, 3000, "strip", seed=1)
+    ens.run(3000, [history])
+    steps, var = ens.spread()
+    rows = dict(zip(history.rows["step"], history.rows["var_dp_chaotic"], strict=True))
+    common = [i for i, n in enumerate(steps) if n in rows]
+    assert len(common) >= 20
+    np.testing.assert_allclose(var[common], [rows[steps[i]] for i in common], rtol=1e-9)
+    fit = ens.diffusion(decades=1.0)
+    assert fit.rows == 8 and np.isfinite(fit.mu) and fit.stderr > 0  # 316 .. 2371

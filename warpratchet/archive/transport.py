@@ -1,0 +1,201 @@
+"""The optional ``/transport`` group of an archive (feature ``"transport"``, issue 16).
+
+An archive of a :class:`~warpratchet.transport.TransportEnsemble` run holds, besides the usual
+layout:
+
+* ``/transport/step`` and ``/transport/counts``: one row per chunk (with the series rows), the
+  histograms of completed return gaps and flights so far, ``(3, BINS)`` int64 per row;
+  ``/transport/rows``: how many rows are valid (raised after they are on disk, like
+  ``/progress/series_rows``);
+* ``/transport/a`` and ``/transport/b``: the transport state that belongs to the checkpoint in
+  ``/checkpoint/a`` and ``/checkpoint/b`` (the carry state per point, the counts, the spread rows
+  of mu), written inside the checkpoint's protocol (before its ``step`` is set), so a checkpoint
+  is complete only with its transport state and a resume continues counting exactly.
+
+Everything is created up front (SWMR allows no new objects later); the spread rows grow by
+resizing. Readers that do not know the feature ignore the group (docs/archive.md).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import h5py
+import numpy as np
+
+from ..transport.fits import GROUPS
+from ..transport.histograms import BINS, CARRY_FIELDS, HISTOGRAMS
+from .checks import reading
+from .checks import refresh as _refresh
+from .layout import ROW_CHUNK, STATE_CHUNK, _group, _set_attrs
+from .names import SLOTS, ArchiveError
+from .rows import Rows
+
+__all__ = [
+    "FEATURE",
+    "DESCRIPTIONS",
+    "create",
+    "TransportRows",
+    "TransportWriter",
+    "counts_transport",
+    "write_slot",
+    "read_slot",
+    "read_rows",
+    "restore",
+]
+
+#: The feature name in ``/@features``.
+FEATURE = "transport"
+#: ``(units, long_name)`` of the group's datasets (slot datasets by their own name).
+DESCRIPTIONS = {
+    "step": ("iteration", "step at the end of the chunk"),
+    "counts": ("1", f"completed runs per log2 bin of length, rows {', '.join(HISTOGRAMS)}"),
+    "rows": ("1", "valid rows of /transport (raised after they are on disk)"),
+    "last_visit": ("iteration", "global step of the point's last visit to B; -1 none yet"),
+    "flight_gain": ("1", "whole units gained per step by the run in progress; 0 none"),
+    "flight_start": ("iteration", "global step of the first step of the run in progress"),
+    "spread_steps": ("iteration", "steps of the spread rows (round(10^(k/8)))"),
+    "spread": ("1", "per group of points: count, mean, squared deviations of p_n - p_0 (chaotic)"),
+}
+
+
+def _dataset(group: h5py.Group, name: str, **kw: Any) -> h5py.Dataset:
+    ds = group.create_dataset(name, fletcher32=True, **kw)
+    units, long_name = DESCRIPTIONS[name]
+    _set_attrs(ds, {"units": units, "long_name": long_name})
+    return ds
+
+
+def create(f: h5py.File, points: int) -> None:
+    """Create ``/transport`` (rows, counter, both slots) and list the feature in ``/@features``."""
+    features = [name for name in f.attrs["features"].decode().split(",") if name]
+    f.attrs["features"] = np.bytes_(",".join([*features, FEATURE]).encode())
+    g = _group(f, "transport")
+    _set_attrs(g, {"bins": BINS, "groups": GROUPS, "histograms": ",".join(HISTOGRAMS)})
+    step = _dataset(g, "step", shape=(0,), maxshape=(None,), chunks=(ROW_CHUNK,), dtype=np.int64)
+    step.make_scale("step")
+    counts = _dataset(
+        g, "counts", shape=(0, len(HISTOGRAMS), BINS), maxshape=(None, len(HISTOGRAMS), BINS),
+        chunks=(16, len(HISTOGRAMS), BINS), dtype=np.int64,
+    )  # fmt: skip
+    counts.dims[0].attach_scale(step)
+    _dataset(g, "rows", data=np.zeros(1, np.int64), chunks=(1,))
+    width = (min(points, STATE_CHUNK),)
+    for slot in SLOTS:
+        s = _group(g, slot)
+        for name in CARRY_FIELDS:
+            _dataset(s, name, shape=(points,), dtype=np.int64, chunks=width)
+        _dataset(s, "counts", shape=(len(HISTOGRAMS), BINS), dtype=np.int64, chunks=(len(HISTOGRAMS), BINS))
+        _dataset(s, "spread_steps", shape=(0,), maxshape=(None,), chunks=(64,), dtype=np.int64)
+        _dataset(
+            s,
+            "spread",
+            shape=(0, GROUPS, 3),
+            maxshape=(None, GROUPS, 3),
+            chunks=(64, GROUPS, 3),
+            dtype=np.float64,
+        )
+
+
+class TransportRows(Rows):
+    """``/transport/step`` and ``/transport/counts`` behind the ``/transport/rows`` counter."""
+
+    def __init__(self, f: h5py.File, count: int) -> None:
+        super().__init__(f["transport"], ("step", "counts"), f["transport"]["rows"], count)
+
+
+def counts_transport(ensemble: Any) -> bool:
+    """Whether ``ensemble`` counts return times and flights (a ``TransportEnsemble``)."""
+    return callable(getattr(ensemble, "transport_state", None))
+
+
+class TransportWriter:
+    """The ``/transport`` group of a running archive: a row with the series row of each chunk,
+    the transport state beside each checkpoint (the interface of ``HistoryWriter``)."""
+
+    def __init__(self, f: h5py.File) -> None:
+        self._file = f
+        self.rows = TransportRows(f, int(f["transport"]["rows"][0]))  # a resume's fill put some there
+        self._row: dict[str, Any] | None = None
+
+    def record(self, ensemble: Any) -> None:
+        self._row = {"step": ensemble.step, "counts": ensemble.histograms().counts()}
+
+    def growth_bytes(self) -> int:
+        return self.rows.growth_bytes()
+
+    def put(self) -> None:
+        self.rows.put(self._row)
+
+    def commit(self) -> None:
+        self.rows.commit()
+
+    def trim(self) -> None:
+        self.rows.trim()
+
+    def slot_extra(self, ensemble: Any) -> tuple[Any, int]:
+        """``(write(slot), bytes)``: the transport state a checkpoint is complete only with."""
+        state = ensemble.transport_state()
+        return (lambda slot: write_slot(self._file, slot, state)), sum(v.nbytes for v in state.carry.values())
+
+
+def write_slot(f: h5py.File, slot: str, transport: Any) -> None:
+    """Write a :class:`~warpratchet.transport.ensemble.TransportState` into ``/transport/<slot>``."""
+    s = f["transport"][slot]
+    for name in CARRY_FIELDS:
+        s[name].write_direct(np.ascontiguousarray(transport.carry[name], dtype=np.int64))
+    s["counts"].write_direct(np.ascontiguousarray(transport.counts, dtype=np.int64))
+    rows = int(transport.spread_steps.size)
+    for name, values in (("spread_steps", transport.spread_steps), ("spread", transport.spread)):
+        s[name].resize(rows, axis=0)
+        if rows:
+            s[name].write_direct(np.ascontiguousarray(values))
+
+
+def read_slot(f: h5py.File, path: str, slot: str, points: int) -> Any:
+    """The transport state in ``/transport/<slot>`` (ArchiveError if it is unreadable)."""
+    from ..transport.ensemble import TransportState
+
+    with reading(path, f"/transport/{slot}"):
+        s = f["transport"][slot]
+        carry = {}
+        for name in CARRY_FIELDS:
+            ds = _refresh(s[name])
+            if ds.shape != (points,):
+                raise ArchiveError(
+                    f"{path}: /transport/{slot}/{name} has shape {ds.shape}, expected ({points},)"
+                )
+            carry[name] = ds[:]
+        return TransportState(
+            carry=carry,
+            counts=_refresh(s["counts"])[:],
+            spread_steps=_refresh(s["spread_steps"])[:],
+            spread=_refresh(s["spread"])[:],
+        )
+
+
+def read_rows(f: h5py.File, path: str) -> dict[str, np.ndarray]:
+    """The valid rows: ``step`` ``(R,)`` int64, ``counts`` ``(R, 3, BINS)`` int64."""
+    with reading(path, "/transport"):
+        g = f["transport"]
+        n = int(_refresh(g["rows"])[0])
+        out = {}
+        for name in ("step", "counts"):
+            ds = _refresh(g[name])
+            if ds.shape[0] < n:
+                raise ArchiveError(f"{path}: /transport/{name} has {ds.shape[0]} rows, {n} are valid")
+            out[name] = ds[:n]
+        return out
+
+
+def restore(
+    params: Any, state: dict[str, np.ndarray], step: int, transport: Any, threshold: Any, **kwargs: Any
+):
+    """A :class:`~warpratchet.transport.TransportEnsemble` holding ``state`` at ``step``, counting
+    on from ``transport`` (a ``TransportState``; None: counting starts at ``step``), with the
+    run's chaos ``threshold``; ``kwargs`` as :meth:`Ensemble.from_state`."""
+    from ..transport import TransportEnsemble
+
+    ensemble = TransportEnsemble.from_state(params, state, step, transport=transport, **kwargs)
+    ensemble.threshold = threshold
+    return ensemble

@@ -1,0 +1,30 @@
+"""Transport beyond the mean (issue 16): return times to B, flights, anomalous diffusion.
+
+* :class:`TransportEnsemble` (:mod:`.ensemble`): an ensemble whose runs also count, in the kernel
+  (:mod:`warpratchet.kernels.transport`), the return times to the strip B (Eq. B) and the flights
+  (runs of equal nonzero whole-unit gain) into log2-binned histograms, exactly;
+* :mod:`.histograms`: the bins, :class:`Histograms`, the runs still open;
+* :mod:`.twin`: the kernel's NumPy twin (tests).
+"""
+
+from .histograms import BINS, CARRY_FIELDS, HISTOGRAMS, Histograms, bin_of, edges, open_runs
+
+__all__ = [
+    "BINS",
+    "CARRY_FIELDS",
+    "HISTOGRAMS",
+    "Histograms",
+    "TransportEnsemble",
+    "bin_of",
+    "edges",
+    "open_runs",
+]
+
+
+def __getattr__(name: str):
+    # The ensemble needs Warp; the pure parts above do not, so it is imported on first use.
+    if name == "TransportEnsemble":
+        from .ensemble import TransportEnsemble
+
+        return TransportEnsemble
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
