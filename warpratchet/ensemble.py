@@ -27,11 +27,12 @@ import numpy as np
 import warp as wp
 
 from . import kernels
-from .errors import check_choice, check_count
+from .errors import ParameterError, check_choice, check_count
 from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
-from .observables import Summary, summarize
+from .limits import MAX_POINTS, MAX_STEP, check_kernel_range, check_memory
+from .observables import SUMMARY_BYTES_PER_POINT, Summary, summarize
 from .params import MapParams
-from .runloop import Observer, archive_sink, run_chunks
+from .runloop import Observer, archive_sink, check_observers, run_chunks
 from .spec import MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS
 
 __all__ = [
@@ -166,6 +167,33 @@ def default_chunk_steps(points: int) -> int:
     return int(min(100_000, max(16, 250_000_000 // max(points, 1))))
 
 
+def _check_params(params: object) -> MapParams:
+    """``params`` if it is a MapParams the kernels can carry (limits.check_kernel_range)."""
+    if not isinstance(params, MapParams):
+        raise ParameterError(f"params = {params!r} is not a MapParams (e.g. MapParams(K=3, b1=0.1, b2=0.01))")
+    check_kernel_range(params)
+    return params
+
+
+def _check_state(state: dict) -> None:
+    """ParameterError unless ``state`` is one an ensemble can hold: finite, ``x, q`` in [0, 1),
+    whole windings, ``|p0| < 2^52`` (what :meth:`Ensemble.state` returns, and checkpoints hold)."""
+    for name in STATE_FIELDS:
+        values = np.asarray(state[name])
+        if values.dtype.kind not in "iuf" or values.dtype.kind == "f" and not np.all(np.isfinite(values)):
+            bad = "not numbers" if values.dtype.kind not in "iuf" else "NaN or infinite values"
+            raise ParameterError(f"state[{name!r}] holds {bad}; a state must be finite")
+    for name in ("x", "q"):
+        values = np.asarray(state[name])
+        if values.size and not (values.min() >= 0.0 and values.max() < 1.0):
+            raise ParameterError(f"state[{name!r}] is outside the allowed range 0 <= {name} < 1")
+    winding = np.asarray(state["winding"])
+    if winding.dtype.kind == "f" and np.any(winding != np.round(winding)):
+        raise ParameterError("state['winding'] holds fractions; windings are whole units of momentum")
+    if np.any(np.abs(np.asarray(state["p0"])) >= 2.0**52):
+        raise ParameterError("state['p0'] is outside the allowed range |p0| < 2^52 (p0 mod 1 must be exact)")
+
+
 class Ensemble:
     """Points of the map (Eq. cpem) and their tangents, advanced together.
 
@@ -247,7 +275,16 @@ class Ensemble:
         wp.copy(self._arrays[name], source, dest_offset=lo, count=count)
 
     def _setup(self, params, points, step, device, threads, sampler, seed) -> None:
-        """Everything but the state, which is allocated here (uninitialised) and filled by the caller."""
+        """Everything but the state, which is allocated here (uninitialised) and filled by the caller.
+
+        Every argument is checked before anything is allocated: the map against what the kernels
+        carry, the points against :data:`~warpratchet.limits.MAX_POINTS` and this machine's memory.
+        """
+        params = _check_params(params)
+        points = check_count("points", points, 1, MAX_POINTS)
+        if threads is None:
+            threads = default_threads()
+        self.threads = check_count("threads", threads, 1, MAX_THREADS)
         kernels.init_warp()
         self.params = params
         try:
@@ -255,9 +292,7 @@ class Ensemble:
         except Exception:
             available = ", ".join(str(d) for d in wp.get_devices())
             raise ValueError(f"device = {device!r} is not available (Warp sees: {available})") from None
-        if threads is None:
-            threads = default_threads()
-        self.threads = check_count("threads", threads, 1, MAX_THREADS)
+        self.check_fits(points, self.device)
         self.sampler = sampler
         self.seed = seed
         self.step = int(step)
@@ -266,6 +301,34 @@ class Ensemble:
             for name in STATE_FIELDS
         }
         self.points = points
+
+    @classmethod
+    def bytes_per_point(cls) -> int:
+        """Bytes of device memory per point: the state (:data:`STATE_FIELDS`, 56 B) and the
+        per-point arrays of the kernel variant (:attr:`_kernel`; e.g. 24 B for MEGNO and the FLI)."""
+        state = 8 * len(STATE_FIELDS)  # float64 and int64
+        extra = cls._kernel.variant.arrays.vars.values()
+        return state + sum(wp.types.type_size_in_bytes(v.type.dtype) for v in extra)
+
+    @classmethod
+    def check_fits(cls, points: int, device: str = "cpu") -> None:
+        """ResourceError, before anything is allocated, if ``points`` do not fit this machine.
+
+        On the CPU the state and one summary's working memory
+        (:data:`~warpratchet.observables.SUMMARY_BYTES_PER_POINT`) share the host's memory; on a
+        GPU the state must fit the device, and the host holds a copy to summarise.
+        """
+        kernels.init_warp()
+        state = cls.bytes_per_point()
+        what = f"points = {points}"
+        if wp.get_device(device).is_cpu:
+            per_point = state + SUMMARY_BYTES_PER_POINT
+            detail = f"{state} B of state per point and {SUMMARY_BYTES_PER_POINT} B to summarise it"
+            check_memory(what, points * per_point, detail)
+            return
+        free = getattr(wp.get_device(device), "free_memory", None)
+        check_memory(what, points * state, f"{state} B per point on {device}", available=free or None)
+        check_memory(f"{what} (host copy)", points * (8 * len(STATE_FIELDS) + SUMMARY_BYTES_PER_POINT))
 
     # -- construction -----------------------------------------------------------------------
     @classmethod
@@ -306,12 +369,16 @@ class Ensemble:
         seed: int | None = None,
     ) -> Ensemble:
         """Rebuild an ensemble exactly from :meth:`state` output (checkpoints, exact restart)."""
+        step = check_count("step", step, 0, MAX_STEP)
+        if not isinstance(state, dict):
+            raise ParameterError(f"state = {type(state).__name__} is not a dict of arrays (Ensemble.state())")
         missing = [name for name in STATE_FIELDS if name not in state]
         if missing:
             raise ValueError(f"state is missing fields {missing}")
-        sizes = {np.asarray(state[name]).shape for name in STATE_FIELDS}
+        sizes = {np.shape(state[name]) for name in STATE_FIELDS}
         if len(sizes) != 1 or len(next(iter(sizes))) != 1:
             raise ValueError(f"state fields must be 1-D arrays of one length; got shapes {sizes}")
+        _check_state(state)
         obj = cls.__new__(cls)
         obj._setup(params, len(state["x"]), step, device, threads, sampler, seed)
         for name in STATE_FIELDS:
@@ -412,8 +479,8 @@ class Ensemble:
         """
         if self.undefined is not None:
             raise ValueError(f"this ensemble cannot be run: {self.undefined}; rebuild it")
-        steps = check_count("steps", steps, 0)
-        observers = list(observers)
+        steps = check_count("steps", steps, 0, MAX_STEP - self.step)
+        observers = check_observers(observers)
         sink = None
         if archive is not None:
             sink = archive_sink(self, archive, chunk_steps)

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from .errors import NonFiniteStateError, check_count, check_optional, check_real
+
 __all__ = [
     "acceleration",
     "lyapunov",
@@ -20,6 +22,7 @@ __all__ = [
     "chaotic_mask",
     "mean_stderr",
     "MIN_CHAOTIC_POINTS",
+    "SUMMARY_BYTES_PER_POINT",
     "AMBIGUITY_FACTOR",
     "UnreliableWarning",
     "reliability",
@@ -31,6 +34,11 @@ __all__ = [
 #: estimated from the sample; its relative standard error is ``1/sqrt(2 (N - 1))`` (normal
 #: samples), which is 10% at N = 51: below that, "A +- stderr" does not say how uncertain A is.
 MIN_CHAOTIC_POINTS = 51
+#: Working memory of :func:`summarize` per point, bytes, beyond the state it reads: the FTLE and
+#: ``A_n`` (8 B each) and the temporaries of computing them (at most two more at a time), the
+#: chaotic subsets (8 B each, all points at worst), the masks (1 B each). ``tests/test_limits.py``
+#: measures the peak (tracemalloc) with every point chaotic and checks it stays below this.
+SUMMARY_BYTES_PER_POINT = 64
 #: Points whose FTLE lies within this factor of the threshold, on either side, are "ambiguous":
 #: their classification could go either way (tests/test_statistics.py uses the same band).
 AMBIGUITY_FACTOR = 3.0
@@ -193,15 +201,33 @@ def summarize(state: dict[str, np.ndarray], step: int, threshold: float | None =
     ``sum_i |A_i - A| / (N_chaotic - N_ambiguous)``. :func:`reliability` compares it with the
     standard error and sets ``reliable`` and ``reason``; no warning is issued here (sinks call
     this after every chunk; :meth:`Ensemble.summary` warns).
+
+    Raises
+    ------
+    ParameterError
+        ``step < 1``, or a ``threshold`` that is negative, NaN or infinite.
+    NonFiniteStateError
+        (a ``ValueError``) The state holds NaN or infinite values (a tangent that overflowed):
+        a summary of it would not be a number.
     """
+    step = check_count("step", step, 1)
+    threshold = check_optional(check_real, "threshold", threshold, 0.0)
     if threshold is None:
         threshold = default_lyapunov_threshold(step)
-    ftle = lyapunov(state, step)
-    if not np.all(np.isfinite(ftle)):
-        bad = int(np.count_nonzero(~np.isfinite(ftle)))
-        raise FloatingPointError(f"{bad} tangent vectors overflowed; b1 or b2 is too small for float64")
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # non-finite: refused below
+        ftle = lyapunov(state, step)
+        acc = acceleration(state, step)
+    for values, name, why in (
+        (ftle, "FTLE", "the tangent overflowed float64"),
+        (acc, "A_n", "x, q, winding or p0 is not finite"),
+    ):
+        if not np.all(np.isfinite(values)):
+            bad = int(np.count_nonzero(~np.isfinite(values)))
+            raise NonFiniteStateError(
+                f"{bad} of {values.size} points have a non-finite {name} ({why}): "
+                "a state that is not finite has no summary"
+            )
     mask = ftle > threshold
-    acc = acceleration(state, step)
     a_mean, a_err = mean_stderr(acc[mask])
     chaotic_ftle = ftle[mask]
     chaotic_points = int(np.count_nonzero(mask))

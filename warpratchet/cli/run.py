@@ -35,9 +35,12 @@ def add(sub) -> None:
 def run_report(ensemble, seconds: float, steps_run: int, threshold: float | None) -> dict[str, Any]:
     """The JSON object of ``run`` and ``resume``: parameters, A, FTLE statistics, speed."""
     from .. import theory
+    from ..ensemble import STATE_FIELDS
     from ..observables import summarize
 
-    summary = summarize(ensemble.state(), ensemble.step, threshold).as_dict()
+    # Views of the live state (zero-copy on the CPU): a copy would double the memory a run needs.
+    live = {name: ensemble.array(name) for name in STATE_FIELDS}
+    summary = summarize(live, ensemble.step, threshold).as_dict()
     del summary["step"]  # the report's "steps" is the ensemble's step
     # A, A_stderr, lyapunov (+ _std, _min), chaotic_fraction, chaotic_points, threshold, and
     # whether A can be trusted: reliable, reason, classification_bound (observables.reliability)
