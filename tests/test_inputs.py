@@ -20,7 +20,7 @@ import uuid
 
 import numpy as np
 import pytest
-from support import MAP_FLAGS, cli, error_line
+from support import MAP_FLAGS, cli, error_line, same_state
 
 from warpratchet import Ensemble, MapParams, Observer, RunSpec, paper, summarize, theory
 from warpratchet.archive import ArchiveSink, open_archive
@@ -222,7 +222,7 @@ def test_absurd_thread_counts_are_refused(capsys):
         Ensemble.sample(P, 10, threads=10**9)
 
 
-def test_from_state_refuses_a_negative_step_and_a_state_it_cannot_hold():
+def test_from_state_refuses_a_negative_step_and_a_state_it_cannot_hold(tmp_path):
     good = Ensemble.sample(P, 50, threads=1).run(30)
     with pytest.raises(ParameterError, match=r"^step = -5 is outside the allowed range 0 <= step"):
         Ensemble.from_state(P, good.state(), -5)
@@ -243,6 +243,9 @@ def test_from_state_refuses_a_negative_step_and_a_state_it_cannot_hold():
         Ensemble.from_state(P, state, 30)
     again = Ensemble.from_state(P, good.state(), np.int64(30), threads=1)  # and a good one is taken
     assert again.step == 30 and again.run(10).step == 40
+    np.savez(tmp_path / "state.npz", **good.state())  # any mapping of arrays, e.g. a saved .npz
+    with np.load(tmp_path / "state.npz") as saved:
+        assert same_state(Ensemble.from_state(P, saved, 30, threads=1).run(10).state(), again.state())
 
 
 # -- 8. valid values refused ------------------------------------------------------------------------

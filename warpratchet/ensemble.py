@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -370,7 +370,7 @@ class Ensemble:
     ) -> Ensemble:
         """Rebuild an ensemble exactly from :meth:`state` output (checkpoints, exact restart)."""
         step = check_count("step", step, 0, MAX_STEP)
-        if not isinstance(state, dict):
+        if not isinstance(state, Mapping):
             raise ParameterError(f"state = {type(state).__name__} is not a dict of arrays (Ensemble.state())")
         missing = [name for name in STATE_FIELDS if name not in state]
         if missing:
