@@ -35,13 +35,26 @@ def test_every_subcommand_help_has_a_description_and_examples(name, capsys):
     assert "examples:" in out and all(line in out for line in EXAMPLES[name])
 
 
-def test_parse_errors_are_one_line_with_the_subcommand_and_no_doubled_prefix():
+def test_parse_errors_are_a_short_usage_and_one_error_line_with_no_doubled_prefix():
+    """argparse's convention (issue 14.7), kept short: one usage line, then the one error line."""
     done = cli("run", *MAP_FLAGS, "--points", "0", "--quiet")
     assert done.returncode == 2 and done.stdout == ""
-    [line] = done.stderr.strip().splitlines()
+    [usage, line] = done.stderr.strip().splitlines()
     assert line.startswith("warpratchet run: error: argument --points: points = 0 is outside")
     assert line.count("error:") == 1 and "warpratchet: error: warpratchet" not in line
-    assert line.endswith("(see 'warpratchet run --help')")
+    assert usage == "usage: warpratchet run [options]  (warpratchet run --help lists them)"
+
+
+def test_a_one_line_argparse_usage_is_printed_as_it_is(capsys):
+    assert main(["inspect"]) == 2
+    usage, line = capsys.readouterr().err.splitlines()
+    assert usage == "usage: warpratchet inspect [-h] [--json] archive"
+    assert line == "warpratchet inspect: error: the following arguments are required: archive"
+
+
+def test_errors_found_while_a_command_runs_are_one_line(capsys):
+    assert main(["theory", "--K", "5", "--b1", "0.1", "--b2", "0.1"]) == 2
+    assert capsys.readouterr().err == "warpratchet: error: K = 5.0 is outside the allowed range 0 < K < 4\n"
 
 
 @pytest.mark.parametrize(
@@ -56,8 +69,8 @@ def test_parse_errors_are_one_line_with_the_subcommand_and_no_doubled_prefix():
 )
 def test_every_range_is_checked(argv, needle, capsys):
     assert main([*argv, "--quiet"]) == 2
-    err = capsys.readouterr().err
-    assert err.count("\n") == 1 and needle in err
+    usage, line = capsys.readouterr().err.splitlines()
+    assert usage.startswith("usage: warpratchet ") and needle in line
 
 
 def test_figures_subcommand_is_the_viz_command(tmp_path, capsys):

@@ -78,17 +78,25 @@ def test_run_with_archive_refuses_another_run_and_a_different_chunking(tmp_path)
         assert arc.checkpoint_step == 200
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="sweep/file.py opens with locking=False, which HDF5 refuses while h5py holds the file "
-    "with its default locking in the same process; fix belongs to sweep/file.py (archive2)",
-)
-def test_read_sweep_while_h5py_holds_the_file(tmp_path):
+@pytest.mark.parametrize("locking", [None, True, False, "best-effort"])
+def test_read_sweep_while_h5py_holds_the_file(tmp_path, locking):
     import h5py
 
     from warpratchet.sweep import SweepSpec, maximal_path, read_sweep, run_sweep
 
     path = tmp_path / "s.h5"
     rows = run_sweep(maximal_path([0.02], K=3.0), SweepSpec(points=200, steps=200), out=path)
-    with h5py.File(path, "r"):
+    with h5py.File(path, "r", **({} if locking is None else {"locking": locking})):
         assert read_sweep(path) == rows
+
+
+@pytest.mark.parametrize("locking", [None, True, False, "best-effort"])
+def test_open_archive_while_h5py_holds_the_file(tmp_path, locking):
+    import h5py
+
+    path = tmp_path / "a.h5"
+    ens = Ensemble.sample(MapParams(3.0, 0.1, 0.01), 200, threads=1).run(300, archive=path)
+    with h5py.File(path, "r", **({} if locking is None else {"locking": locking})):
+        with open_archive(path) as arc:
+            state, step = arc.checkpoint()
+    assert step == 300 and all(np.array_equal(v, ens.array(k)) for k, v in state.items())

@@ -14,6 +14,7 @@ import textwrap
 import h5py
 import numpy as np
 import pytest
+from support import error_line
 
 from warpratchet import Ensemble, summarize, theory
 from warpratchet import sweep as sweep_module
@@ -309,7 +310,7 @@ def test_cli_bad_input_is_one_line_naming_the_value(args, message, capsys):
     assert main(["sweep", *args, "--quiet"]) == 2
     captured = capsys.readouterr()
     assert captured.out == ""
-    assert captured.err.count("\n") == 1 and message in captured.err, captured.err
+    assert message in error_line(captured.err), captured.err
 
 
 # -- files of release 0.1.0 ----------------------------------------------------------------------

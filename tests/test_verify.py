@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from support import cli, same_state
 
-from warpratchet import Ensemble, MapParams, open_archive
+from warpratchet import Ensemble, MapParams, Observer, open_archive
 from warpratchet.archive import ArchiveError, ArchiveSink, ArchiveWarning, NonFiniteStateError, run_to
 from warpratchet.archive.verify import verify_archive
 from warpratchet.cli import main
@@ -183,14 +183,24 @@ def test_cli_resume_says_what_it_skipped(archived, tmp_path):
     assert json.loads(proc.stdout)["steps"] == 1100
 
 
+class _Overflow(Observer):
+    """Overflows some tangents at step 2500, as a tiny b did (issue 13.5): ``RunSpec`` and
+    ``Ensemble`` now refuse such b up front, so the overflow is made by hand (on the CPU
+    ``array`` is the live state)."""
+
+    def after_chunk(self, ensemble, seconds):
+        if ensemble.step == 2500:
+            ensemble.array("dx")[[3, 30, 300]] = np.inf
+
+
 def test_non_finite_state_is_never_checkpointed(tmp_path):
-    """Tiny b: tangents overflow float64. The sink refuses; the last good checkpoint stays."""
+    """Tangents that overflowed float64: the sink refuses; the last good checkpoint stays."""
     path = tmp_path / "tiny.h5"
-    ens = Ensemble.sample(MapParams(3.0, 1e-150, 1e-150), 1000, "strip", 0)
+    ens = Ensemble.sample(MapParams(3.0, 0.1, 0.01), 1000, "strip", 0)
     sink = ArchiveSink(path, ens, chunk_steps=500, checkpoint_every=1000)
     with np.errstate(divide="ignore", invalid="ignore"):  # the overflow this test is about
         with pytest.raises(NonFiniteStateError, match="not finite.*keeps its checkpoint at step"):
-            ens.run(10_000, [sink], chunk_steps=sink.chunk_steps)
+            ens.run(10_000, [_Overflow(), sink], chunk_steps=sink.chunk_steps)
     sink.close()
     with warnings.catch_warnings():
         warnings.simplefilter("error", ArchiveWarning)  # no damaged or non-finite checkpoint to skip

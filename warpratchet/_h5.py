@@ -161,12 +161,21 @@ def compact_links(gcpl: h5p.PropGCID, max_compact: int = 64) -> bool:
     return setter is not None and setter(gcpl.id, max_compact, max_compact // 2) >= 0
 
 
-def open_h5_reader(path: str | os.PathLike, *, locking: bool | None = None, swmr: bool = False) -> h5py.File:
+#: HDF5 file-locking settings ``(use locking, ignore where the file system has none)``, in the
+#: order :func:`open_h5` tries them when this process already has the file open with other
+#: settings: HDF5's default first, then h5py's ``locking=False``, ``True`` and ``"best-effort"``.
+_LOCKINGS: tuple[tuple[bool, bool] | None, ...] = (None, (False, False), (True, False), (True, True))
+
+
+def open_h5_reader(
+    path: str | os.PathLike, *, locking: bool | tuple[bool, bool] | None = None, swmr: bool = False
+) -> h5py.File:
     """Open an HDF5 file read-only for a reader that may share it with a live writer.
 
     ``swmr=True`` opens in SWMR-read mode with :data:`SWMR_READ_ATTEMPTS` metadata retries.
     No raw-chunk cache, so that a live reader never serves a stale chunk. ``locking`` is HDF5's
-    own file locking (None: HDF5's default).
+    own file locking (None: HDF5's default; a bool ignores file systems without locks; a pair
+    ``(use, ignore_when_disabled)`` is passed as it is).
 
     Raises
     ------
@@ -179,7 +188,8 @@ def open_h5_reader(path: str | os.PathLike, *, locking: bool | None = None, swmr
     mdc, nslots, _, w0 = fapl.get_cache()
     fapl.set_cache(mdc, nslots, 0, w0)
     if locking is not None:
-        fapl.set_file_locking(locking, True)
+        use, ignore = (locking, True) if isinstance(locking, bool) else locking
+        fapl.set_file_locking(use, ignore)
     setter = _read_attempts_setter() if swmr else None
     if setter is not None:
         setter(fapl.id, SWMR_READ_ATTEMPTS)
@@ -212,6 +222,21 @@ def writer_marked(path: str | os.PathLike) -> bool:
     return False
 
 
+def _open_beside(path: str, locking: bool | None, swmr: bool) -> h5py.File:
+    """:func:`open_h5_reader`; if this process already has the file open with other locking
+    settings (a notebook's own ``h5py.File``), HDF5 refuses a second handle whose settings differ
+    ("file locking flag values don't match"): then the settings it has are found and used."""
+    try:
+        return open_h5_reader(path, locking=locking, swmr=swmr)
+    except OSError as exc:
+        if "flag values don't match" not in str(exc) or locking is not None:
+            raise
+        for other in _LOCKINGS[1:]:
+            with contextlib.suppress(OSError):
+                return open_h5_reader(path, locking=other, swmr=swmr)
+        raise
+
+
 def open_h5(path: str | os.PathLike, *, locking: bool | None = None) -> h5py.File:
     """Open an HDF5 file read-only, live or not: the one way readers of warpratchet files open them.
 
@@ -221,16 +246,23 @@ def open_h5(path: str | os.PathLike, *, locking: bool | None = None) -> h5py.Fil
     open: HDF5 checks a file's size *before* its mark, so a live file whose writer has just
     allocated space it has not written yet gives a false "truncated file" (issue 13.4).
 
+    Locking. ``locking=None`` (the default) opens with HDF5's default file locking, like any
+    ``h5py.File``; beside a handle this process already holds with other settings it takes
+    those; and where a writer's lock refuses it for ~1 s (another program's writer that has not
+    entered SWMR mode yet, or a lock this process holds itself) it reads without locking, as
+    SWMR readers may. ``locking=False`` reads without HDF5's locks from the start (callers that
+    hold their own ``flock`` claim on the file).
+
     Raises
     ------
     OSError
-        HDF5's error (truncated, corrupted, not HDF5, locked by a writer that has not yet
-        entered SWMR mode after ~1 s of retries).
+        HDF5's error (truncated, corrupted, not HDF5; with ``locking=True``, locked by a writer
+        that has not yet entered SWMR mode after ~1 s of retries).
     """
     path = os.fspath(path)
     for attempt in range(20):
         try:
-            return open_h5_reader(path, locking=locking, swmr=writer_marked(path))
+            return _open_beside(path, locking, swmr=writer_marked(path))
         except OSError as exc:
             text = str(exc)
             if "SWMR read access flag not the same" in text:
@@ -239,5 +271,7 @@ def open_h5(path: str | os.PathLike, *, locking: bool | None = None) -> h5py.Fil
             if "unable to lock file" in text and attempt < 19:
                 time.sleep(0.05)  # another program's writer, about to enter SWMR mode
                 continue
+            if "unable to lock file" in text and locking is None:
+                return open_h5_reader(path, locking=False, swmr=writer_marked(path))
             raise
     raise AssertionError("unreachable")  # pragma: no cover

@@ -19,20 +19,22 @@ is independent, so results are bitwise identical for any thread count.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import warp as wp
 
 from . import kernels
-from .errors import check_choice, check_count
+from .errors import ParameterError, check_choice, check_count
 from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
-from .observables import Summary, summarize
+from .limits import MAX_POINTS, MAX_STEP, check_kernel_range, check_memory, format_bytes
+from .observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, Summary, summarize
 from .params import MapParams
-from .runloop import Observer, archive_sink, run_chunks
+from .runloop import Observer, archive_sink, check_observers, default_chunk_steps, default_threads, run_chunks
 from .sampling import _BUILD_CHUNK, grid_nodes, sample_grid, sample_strip, sample_torus, sampled_chunks
 from .spec import MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS
+from .state import STATE_FIELDS, check_state
 
 __all__ = [
     "STATE_FIELDS",
@@ -50,29 +52,10 @@ __all__ = [
     "default_chunk_steps",
 ]
 
-#: Per-point state arrays, in the order archives store them.
-STATE_FIELDS = ("x", "q", "winding", "p0", "dx", "dp", "log_stretch")
 #: The state arrays the kernels take, in their argument order (p0 is not needed to advance).
 _KERNEL_FIELDS = ("x", "q", "winding", "dx", "dp", "log_stretch")
 # The initial-condition samplers (``SAMPLERS``, ``sample_*``, ``grid_nodes``) live in
 # :mod:`warpratchet.sampling`; they are re-exported here, where callers have always found them.
-
-
-def default_threads() -> int:
-    """One thread per core this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(1, os.cpu_count() or 1)
-
-
-def default_chunk_steps(points: int) -> int:
-    """Steps per chunk: about 2.5e8 point-steps (~0.3-0.5 s here), between 16 and 10^5 steps.
-
-    Long enough that per-chunk Python work (observers, progress) is noise, short enough that
-    progress bars move and a checkpoint is never far behind.
-    """
-    return int(min(100_000, max(16, 250_000_000 // max(points, 1))))
 
 
 class Ensemble:
@@ -156,7 +139,16 @@ class Ensemble:
         wp.copy(self._arrays[name], source, dest_offset=lo, count=count)
 
     def _setup(self, params, points, step, device, threads, sampler, seed) -> None:
-        """Everything but the state, which is allocated here (uninitialised) and filled by the caller."""
+        """Everything but the state, which is allocated here (uninitialised) and filled by the caller.
+
+        Every argument is checked before anything is allocated: the map against what the kernels
+        carry, the points against :data:`~warpratchet.limits.MAX_POINTS` and this machine's memory.
+        """
+        params = check_kernel_range(params)
+        points = check_count("points", points, 1, MAX_POINTS)
+        if threads is None:
+            threads = default_threads()
+        self.threads = check_count("threads", threads, 1, MAX_THREADS)
         kernels.init_warp()
         self.params = params
         try:
@@ -164,9 +156,7 @@ class Ensemble:
         except Exception:
             available = ", ".join(str(d) for d in wp.get_devices())
             raise ValueError(f"device = {device!r} is not available (Warp sees: {available})") from None
-        if threads is None:
-            threads = default_threads()
-        self.threads = check_count("threads", threads, 1, MAX_THREADS)
+        self.check_fits(points, self.device)
         self.sampler = sampler
         self.seed = seed
         self.step = int(step)
@@ -175,6 +165,35 @@ class Ensemble:
             for name in STATE_FIELDS
         }
         self.points = points
+
+    @classmethod
+    def bytes_per_point(cls) -> int:
+        """Bytes of device memory per point: the state (:data:`STATE_FIELDS`, 56 B) and the
+        per-point arrays of the kernel variant (:attr:`_kernel`; e.g. 24 B for MEGNO and the FLI)."""
+        state = 8 * len(STATE_FIELDS)  # float64 and int64
+        extra = cls._kernel.variant.arrays.vars.values()
+        return state + sum(wp.types.type_size_in_bytes(v.type.dtype) for v in extra)
+
+    @classmethod
+    def check_fits(cls, points: int, device: str = "cpu") -> None:
+        """ResourceError, before anything is allocated, if ``points`` do not fit this machine.
+
+        On the CPU the state and one summary's working memory share the host's memory (the
+        summary reduces :data:`~warpratchet.observables.SUMMARY_CHUNK` points at a time, each
+        needing :data:`~warpratchet.observables.SUMMARY_BYTES_PER_POINT`); on a GPU the state
+        must fit the device, and the host holds a copy to summarise.
+        """
+        kernels.init_warp()
+        state = cls.bytes_per_point()
+        what = f"points = {points}"
+        summary = min(points, SUMMARY_CHUNK) * SUMMARY_BYTES_PER_POINT
+        if wp.get_device(device).is_cpu:
+            detail = f"{state} B of state per point and {format_bytes(summary)} to summarise it"
+            check_memory(what, points * state + summary, detail)
+            return
+        free = getattr(wp.get_device(device), "free_memory", None)
+        check_memory(what, points * state, f"{state} B per point on {device}", available=free or None)
+        check_memory(f"{what} (host copy)", points * 8 * len(STATE_FIELDS) + summary)
 
     # -- construction -----------------------------------------------------------------------
     @classmethod
@@ -215,12 +234,16 @@ class Ensemble:
         seed: int | None = None,
     ) -> Ensemble:
         """Rebuild an ensemble exactly from :meth:`state` output (checkpoints, exact restart)."""
+        step = check_count("step", step, 0, MAX_STEP)
+        if not isinstance(state, Mapping):
+            raise ParameterError(f"state = {type(state).__name__} is not a dict of arrays (Ensemble.state())")
         missing = [name for name in STATE_FIELDS if name not in state]
         if missing:
             raise ValueError(f"state is missing fields {missing}")
-        sizes = {np.asarray(state[name]).shape for name in STATE_FIELDS}
+        sizes = {np.shape(state[name]) for name in STATE_FIELDS}
         if len(sizes) != 1 or len(next(iter(sizes))) != 1:
             raise ValueError(f"state fields must be 1-D arrays of one length; got shapes {sizes}")
+        check_state(state)
         obj = cls.__new__(cls)
         obj._setup(params, len(state["x"]), step, device, threads, sampler, seed)
         for name in STATE_FIELDS:
@@ -322,8 +345,8 @@ class Ensemble:
         """
         if self.undefined is not None:
             raise ValueError(f"this ensemble cannot be run: {self.undefined}; rebuild it")
-        steps = check_count("steps", steps, 0)
-        observers = list(observers)
+        steps = check_count("steps", steps, 0, MAX_STEP - self.step)
+        observers = check_observers(observers)
         sink = None
         if archive is not None:
             sink = archive_sink(self, archive, chunk_steps)

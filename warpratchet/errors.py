@@ -29,6 +29,7 @@ __all__ = [
     "ParameterError",
     "FileFormatError",
     "ResourceError",
+    "NonFiniteStateError",
     "check_count",
     "check_real",
     "check_choice",
@@ -50,6 +51,13 @@ class FileFormatError(WarpratchetError):
 
 class ResourceError(WarpratchetError):
     """A request the machine cannot carry out (memory, disk, counts beyond what the code can carry)."""
+
+
+class NonFiniteStateError(WarpratchetError, FloatingPointError):
+    """A state with NaN or infinite values: never summarised as a number, never stored as a checkpoint.
+
+    Also a ``FloatingPointError`` (what :func:`~warpratchet.observables.summarize` raised before).
+    """
 
 
 def _range_text(name: str, low: float | None, high: float | None, low_open: bool, high_open: bool) -> str:

@@ -13,6 +13,8 @@ from typing import Any
 
 import numpy as np
 
+from .errors import NonFiniteStateError, check_count, check_optional, check_real
+
 __all__ = [
     "acceleration",
     "lyapunov",
@@ -22,6 +24,7 @@ __all__ = [
     "chaotic_mask",
     "mean_stderr",
     "MIN_CHAOTIC_POINTS",
+    "SUMMARY_BYTES_PER_POINT",
     "AMBIGUITY_FACTOR",
     "UnreliableWarning",
     "reliability",
@@ -34,6 +37,12 @@ __all__ = [
 #: estimated from the sample; its relative standard error is ``1/sqrt(2 (N - 1))`` (normal
 #: samples), which is 10% at N = 51: below that, "A +- stderr" does not say how uncertain A is.
 MIN_CHAOTIC_POINTS = 51
+#: Working memory of :func:`summarize` per point of a chunk (:data:`SUMMARY_CHUNK` points at a
+#: time), bytes, beyond the state it reads: the FTLE and ``A_n`` (8 B each) and the temporaries of
+#: computing them (at most two more at a time), the chaotic subsets (8 B each, all points at
+#: worst), the masks (1 B each). ``tests/test_limits.py`` measures the peak (tracemalloc) with
+#: every point chaotic and checks it stays below this.
+SUMMARY_BYTES_PER_POINT = 64
 #: Points whose FTLE lies within this factor of the threshold, on either side, are "ambiguous":
 #: their classification could go either way (tests/test_statistics.py uses the same band).
 AMBIGUITY_FACTOR = 3.0
@@ -233,7 +242,8 @@ class _Sums:
 def _per_point(state: dict[str, np.ndarray], step: int, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
     """FTLE and ``A_n`` of points ``lo:hi`` (views of ``state``, no copies of it)."""
     part = {name: state[name][lo:hi] for name in ("winding", "q", "p0", "dx", "dp", "log_stretch")}
-    return lyapunov(part, step), acceleration(part, step)
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # non-finite: refused by the caller
+        return lyapunov(part, step), acceleration(part, step)
 
 
 def summarize(
@@ -265,7 +275,17 @@ def summarize(
     and the results are bitwise those of NumPy's reductions over the whole arrays. Larger
     ensembles add the chunk sums in a different order than NumPy's pairwise sum of the whole
     array would: the same error bound (``O(log N)`` roundings), different last bits.
+
+    Raises
+    ------
+    ParameterError
+        ``step < 1``, or a ``threshold`` that is negative, NaN or infinite.
+    NonFiniteStateError
+        (a ``ValueError``) The state holds NaN or infinite values (a tangent that overflowed):
+        a summary of it would not be a number.
     """
+    step = check_count("step", step, 1)
+    threshold = check_optional(check_real, "threshold", threshold, 0.0)
     if threshold is None:
         threshold = lyapunov_threshold(step, rule)
     n = len(state["log_stretch"])
@@ -273,11 +293,20 @@ def summarize(
     # One chunk: keep its per-point values for the second pass instead of computing them again.
     kept = {}
     sum_a, sum_ftle = _Sums(), _Sums()
-    chaotic_points = n_ambiguous = bad = 0
+    chaotic_points = n_ambiguous = 0
     ftle_min = math.inf
     for lo, hi in bounds:
         ftle, acc = _per_point(state, step, lo, hi)
-        bad += int(np.count_nonzero(~np.isfinite(ftle)))
+        for values, name, why in (
+            (ftle, "FTLE", "the tangent overflowed float64"),
+            (acc, "A_n", "x, q, winding or p0 is not finite"),
+        ):
+            if not np.all(np.isfinite(values)):
+                bad = int(np.count_nonzero(~np.isfinite(values)))
+                raise NonFiniteStateError(
+                    f"{bad} of {values.size} points have a non-finite {name} ({why}): "
+                    "a state that is not finite has no summary"
+                )
         mask = ftle > threshold
         chaotic_ftle = ftle[mask]
         sum_a.add(acc[mask])
@@ -288,8 +317,6 @@ def summarize(
         n_ambiguous += int(np.count_nonzero(_ambiguous(ftle, threshold)))
         if len(bounds) == 1:
             kept[lo] = ftle, acc
-    if bad:
-        raise FloatingPointError(f"{bad} tangent vectors overflowed; b1 or b2 is too small for float64")
     # Means as numpy.mean forms them (sum / count), then the second pass: squared deviations
     # (numpy.std, ddof 1) and the ambiguous points' deviations from A.
     a_mean = float(sum_a.total() / chaotic_points) if chaotic_points else math.nan

@@ -37,7 +37,34 @@ from collections.abc import Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
-__all__ = ["Observer", "deferred_interrupts", "run_chunks", "archive_sink"]
+from .errors import ParameterError
+
+__all__ = [
+    "Observer",
+    "check_observers",
+    "deferred_interrupts",
+    "run_chunks",
+    "archive_sink",
+    "default_threads",
+    "default_chunk_steps",
+]
+
+
+def default_threads() -> int:
+    """One thread per core this process may use."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def default_chunk_steps(points: int) -> int:
+    """Steps per chunk: about 2.5e8 point-steps (~0.3-0.5 s here), between 16 and 10^5 steps.
+
+    Long enough that per-chunk Python work (observers, progress) is noise, short enough that
+    progress bars move and a checkpoint is never far behind.
+    """
+    return int(min(100_000, max(16, 250_000_000 // max(points, 1))))
 
 
 class Observer:
@@ -56,6 +83,25 @@ class Observer:
 
     def end(self, ensemble: Any) -> None:
         """Called once after the last chunk (also when the run is interrupted or fails)."""
+
+
+def check_observers(observers: Any) -> list[Any]:
+    """``observers`` as a list, each with callable ``begin``, ``after_chunk`` and ``end``.
+
+    Checked before the run starts, so that a wrong entry (``None``, a function) is one clear
+    :class:`~warpratchet.errors.ParameterError` rather than an ``AttributeError`` halfway.
+    """
+    if isinstance(observers, (str, bytes)) or not hasattr(observers, "__iter__"):
+        raise ParameterError(f"observers = {observers!r} is not a sequence of Observers")
+    listed = list(observers)
+    for i, obs in enumerate(listed):
+        missing = [name for name in ("begin", "after_chunk", "end") if not callable(getattr(obs, name, None))]
+        if missing:
+            raise ParameterError(
+                f"observers[{i}] = {obs!r} is not an Observer (it has no {', '.join(missing)}; "
+                "subclass warpratchet.Observer)"
+            )
+    return listed
 
 
 class _Deferred:

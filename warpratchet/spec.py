@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .errors import ParameterError, check_choice, check_count, check_real
+from .limits import MAX_POINTS, MAX_STEP, check_kernel_range
 from .params import MapParams
 
 __all__ = [
@@ -137,9 +138,9 @@ _SETTINGS: dict[str, tuple[Any, Setting]] = {
         "strip",
         Setting("initial conditions: the strip B of Eq. (B), the torus, or a grid", str, choices=SAMPLERS),
     ),
-    "points": (10_000, Setting("ensemble size", int, _count(1, _INT64_MAX))),
+    "points": (10_000, Setting("ensemble size", int, _count(1, MAX_POINTS))),
     "seed": (0, Setting("NumPy seed of the sampler", int, _count(0, _INT64_MAX))),
-    "steps": (120_000, Setting("iterations n", int, _count(1, _INT64_MAX))),
+    "steps": (120_000, Setting("iterations n", int, _count(1, MAX_STEP))),
     "classifier": ("ftle", Setting("chaos indicator", str, choices=CLASSIFIERS)),
     "threshold": (
         None,
@@ -299,10 +300,13 @@ class RunSpec(_Spec):
     ----------
     K, b1, b2 : float
         The map (Eqs. cpem, fx): ``0 < K < 4``, ``b1, b2 > 0``, ``b1 + b2 < 1``; see :attr:`params`.
+        ``b1`` and ``b2`` must also be wide enough for the kernels' float64 tangent (about
+        ``>= 1.4e-26`` at K = 3: :func:`warpratchet.limits.check_kernel_range`).
     init : str
         Sampler of the initial ensemble, one of :data:`SAMPLERS` (default ``"strip"``, Eq. B).
     points : int
-        Ensemble size, ``>= 1`` (default 10^4, the paper's).
+        Ensemble size, ``1..MAX_POINTS`` (default 10^4, the paper's); whether this machine has
+        the memory is checked where the ensemble is built (:func:`warpratchet.limits.check_memory`).
     seed : int
         NumPy seed of the sampler, ``>= 0`` (default 0).
     steps : int
@@ -348,7 +352,9 @@ class RunSpec(_Spec):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        MapParams(self.K, self.b1, self.b2)  # the map's ranges are MapParams' (one definition)
+        # The map's ranges are MapParams' (one definition); a run also needs the kernels to carry
+        # its arithmetic (tiny b1, b2 overflow the tangent: limits.check_kernel_range).
+        check_kernel_range(MapParams(self.K, self.b1, self.b2))
 
     @property
     def params(self) -> MapParams:

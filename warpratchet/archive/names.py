@@ -17,7 +17,7 @@ from version 1 (warpratchet 0.1.0, still read) in:
 
 from __future__ import annotations
 
-from ..errors import FileFormatError, WarpratchetError
+from ..errors import FileFormatError, NonFiniteStateError  # NonFiniteStateError: re-exported
 
 __all__ = [
     "FORMAT",
@@ -155,7 +155,3 @@ class ArchiveError(FileFormatError):
 
 class ArchiveWarning(UserWarning):
     """Something was recovered, e.g. an older checkpoint because the newest one is damaged."""
-
-
-class NonFiniteStateError(WarpratchetError):
-    """A state with NaN or infinite values, which an archive never stores as a checkpoint."""

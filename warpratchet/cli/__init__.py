@@ -2,14 +2,15 @@
 
 One module per subcommand (:mod:`.theory`, :mod:`.run`, :mod:`.resume`, :mod:`.inspect`,
 :mod:`.sweep`, :mod:`.sumrule`, :mod:`.orbits`, :mod:`.verify`, :mod:`.figures`), each with
-``add(subparsers)`` declaring its flags and ``command(args)`` running it; :mod:`.common` holds
-what they share (the one-line error, JSON output, flags built from
-:class:`~warpratchet.spec.RunSpec`), :mod:`.sinks` the output options of ``run``. Bad input
-(argparse errors, ``ValueError`` from the API, unreadable files)
-prints one line on stderr and exits with status 2, never a traceback; a write the system refuses
-(disk full, read-only, permissions: :class:`warpratchet._files.StorageError`) one line and
-status 1; Ctrl-C prints one line (where it stopped, what was kept: :class:`.common.Interrupted`)
-and exits with 130 (128 + SIGINT).
+``add(subparsers)`` declaring its flags and ``command(args)`` running it; :mod:`.common` holds what
+they share (the one-line error, JSON output, flags built from :class:`~warpratchet.spec.RunSpec`),
+:mod:`.sinks` the output options of ``run``. Bad input prints one line on stderr naming the value
+and its range and exits with status 2, never a traceback (a flag refused while parsing: a short
+usage line first, then ``warpratchet run: error: ...``; a ``ValueError`` from the API or an
+unreadable file while a command runs: ``warpratchet: error: ...`` alone); a write the system refuses
+(disk full, read-only, permissions: :class:`warpratchet._files.StorageError`) one line and status 1;
+Ctrl-C prints one line (where it stopped, what was kept: :class:`.common.Interrupted`) and exits
+with 130 (128 + SIGINT).
 
 A new subcommand is a new module with ``add`` and ``command``, listed in :data:`SUBCOMMANDS`,
 with its examples in :data:`EXAMPLES`.
@@ -149,6 +150,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"warpratchet: error: {exc}", file=sys.stderr)
         return 1
     except UsageError as exc:
+        if exc.usage:
+            print(exc.usage, file=sys.stderr)
         print(f"{exc.prog}: error: {exc}{exc.hint}", file=sys.stderr)
         return 2
     except (ValueError, OSError) as exc:

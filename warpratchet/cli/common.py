@@ -41,17 +41,19 @@ _FROM_SPEC = object()  # "take it from the RunSpec field"
 
 
 class UsageError(Exception):
-    """Bad input from the user: reported in one line ``<prog>: error: <message>``, exit status 2.
+    """Bad input from the user: reported as ``<prog>: error: <message>``, exit status 2.
 
     ``prog`` is the command that refused it (``warpratchet`` or, for argparse's errors, the
-    subcommand, as argparse names it); ``hint`` follows the message (argparse's errors point to
-    ``--help``, where the usage is).
+    subcommand, as argparse names it); ``hint`` follows the message. ``usage``, if given, is
+    printed on the line before: a parse error shows a short usage line (argparse's convention,
+    issue 14.7), an error found while a command runs is the error line alone.
     """
 
-    def __init__(self, message: str, prog: str = "warpratchet", hint: str = "") -> None:
+    def __init__(self, message: str, prog: str = "warpratchet", hint: str = "", usage: str = "") -> None:
         super().__init__(message)
         self.prog = prog
         self.hint = hint
+        self.usage = usage
 
 
 class Interrupted(KeyboardInterrupt):
@@ -62,15 +64,24 @@ class Interrupted(KeyboardInterrupt):
     """
 
 
-class Parser(argparse.ArgumentParser):
-    """An ArgumentParser whose errors are one line, argparse's ``<prog>: error: <message>``.
+#: Longest usage line printed as argparse writes it; a longer usage is shortened to one line.
+_USAGE_WIDTH = 100
 
-    The usage is not printed (bad input is one line on stderr): the line ends with where to
-    find it, ``see '<prog> --help'``.
-    """
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose errors are argparse's two lines, kept short: a one-line usage and
+    ``<prog>: error: <message>`` naming the value and its range (:meth:`short_usage`)."""
+
+    def short_usage(self) -> str:
+        """argparse's usage if it is one short line, else one that says where the options are:
+        ``usage: <prog> [options]  (<prog> --help lists them)``."""
+        usage = self.format_usage().strip()
+        if "\n" not in usage and len(usage) <= _USAGE_WIDTH:
+            return usage
+        return f"usage: {self.prog} [options]  ({self.prog} --help lists them)"
 
     def error(self, message: str) -> NoReturn:
-        raise UsageError(message, prog=self.prog, hint=f" (see '{self.prog} --help')")
+        raise UsageError(message, prog=self.prog, usage=self.short_usage())
 
 
 def _clean(value: Any) -> Any:

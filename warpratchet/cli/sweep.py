@@ -102,6 +102,9 @@ def _parse_range(flag: str, text: str) -> list[float]:
         raise UsageError(f"{flag} {text!r}: COUNT = 1 cannot include both ends of a range; use COUNT >= 2")
     import numpy as np
 
+    from ..sweep import check_sweep_size
+
+    check_sweep_size(count, f"{flag} {text!r} ({count} points)")  # before the values are made
     return np.linspace(start, stop, count).tolist()
 
 

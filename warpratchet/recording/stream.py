@@ -8,6 +8,7 @@ where, and in which colours, is :mod:`.scene`.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import sys
@@ -20,7 +21,7 @@ from typing import Literal
 import numpy as np
 
 from .. import theory
-from .._files import check_new_path
+from .._files import check_new_path, storage_errors
 from ..errors import check_choice
 from ..observables import default_lyapunov_threshold
 from ..params import MapParams
@@ -71,6 +72,17 @@ def check_new_file(path: str | Path) -> Path:
     """
     check_new_path(path, hint=" (remove it or choose another path)")
     return Path(path)
+
+
+def _claim_new_file(path: Path) -> None:
+    """Create ``path`` empty (rerun's file sink then writes it), or one StorageError line.
+
+    rerun reports a file it cannot create (read-only folder, disk full) only once it has buffered
+    the recording's first data, and then warns about the dropped data when the process exits;
+    creating the file first refuses it cleanly.
+    """
+    with storage_errors(path, "write"):
+        os.close(os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666))
 
 
 class PhaseSpaceRecording:
@@ -152,17 +164,29 @@ class PhaseSpaceRecording:
         self.closed = False
         self.spawned = spawn
 
+        if path is not None:
+            _claim_new_file(path)  # a refused file fails here, before rerun buffers anything
         rec = rr.RecordingStream(application_id, recording_id=uuid.uuid4())
         # The step timeline is the only clock that means anything here (replays have no
         # meaningful wall time).
         rec.set_log_time_enabled(False)
         view = blueprint(trail, steps)
-        if spawn:
-            rec.spawn(connect=False)
-            sinks = [rr.GrpcSink()] + ([rr.FileSink(str(path))] if path is not None else [])
-            rec.set_sinks(*sinks, default_blueprint=view)
-        else:
-            rec.save(str(path), default_blueprint=view)
+        # rerun reports a refused file (read-only folder, disk full) as a RuntimeError with the
+        # system's words: one StorageError line naming the file (the CLI exits with status 1).
+        try:
+            with storage_errors(path or "the recording", "write"):
+                if spawn:
+                    rec.spawn(connect=False)
+                    sinks = [rr.GrpcSink()] + ([rr.FileSink(str(path))] if path is not None else [])
+                    rec.set_sinks(*sinks, default_blueprint=view)
+                else:
+                    rec.save(str(path), default_blueprint=view)
+        except BaseException:
+            if path is not None:
+                with contextlib.suppress(OSError):
+                    if os.path.getsize(path) == 0:
+                        os.unlink(path)  # the empty file claimed above: nothing was recorded
+            raise
         self._rec = rec
         if title is not None:
             rec.send_recording_name(title)
@@ -271,7 +295,8 @@ class PhaseSpaceRecording:
         if not self.closed:
             self.closed = True
             try:
-                self._rec.flush()
+                with storage_errors(self.path or "the recording", "write"):
+                    self._rec.flush()
             except RuntimeError as exc:  # a spawned viewer that went away: the file is still whole
                 if not self.spawned:
                     raise

@@ -26,9 +26,10 @@ import numpy as np
 from .. import theory
 from ..ensemble import grid_nodes
 from ..errors import check_count
+from ..limits import MAX_POINTS
 from ..observables import mean_stderr
 from ..params import MapParams
-from .islands import PointClasses, classify
+from .islands import PointClasses, check_census_memory, classify
 
 __all__ = ["IslandClass", "Census", "lattice", "census"]
 
@@ -153,12 +154,14 @@ def census(
     if (points is None) == (grid is None):
         raise ValueError("give exactly one of points = N (random) and grid = G (regular lattice)")
     if grid is not None:
-        grid = check_count("grid", grid, 2)
+        grid = check_count("grid", grid, 2, math.isqrt(MAX_POINTS))
+        check_census_memory(grid * grid)  # before the lattice is built
         x0, p0 = lattice(grid)
         used_seed = None
     else:
-        points = check_count("points", points, 2)
+        points = check_count("points", points, 2, MAX_POINTS)
         used_seed = check_count("seed", seed, 0)
+        check_census_memory(points)  # before the points are drawn
         rng = np.random.default_rng(used_seed)
         x0, p0 = rng.random(points), rng.random(points)
     start = time.perf_counter()

@@ -24,7 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..ensemble import Observer
-from ..errors import check_choice, check_count
+from ..errors import NonFiniteStateError, check_choice, check_count, check_optional, check_real
+from ..limits import MAX_POINTS, check_memory
 from ..observables import acceleration, lyapunov
 from ..params import MapParams
 from .indicators import CLASSIFIERS, IndicatorEnsemble, chaotic_by, default_threshold
@@ -37,6 +38,8 @@ __all__ = [
     "identify_nu",
     "PointClasses",
     "classify",
+    "CLASSIFY_HOST_BYTES_PER_POINT",
+    "check_census_memory",
 ]
 
 #: Default bound on the reduced denominator of ``nu = w/m``.
@@ -44,6 +47,19 @@ DEFAULT_M_MAX = 12
 #: Run lengths ``n i / CHECKPOINTS`` (``i = 1..CHECKPOINTS``) at which an island orbit's momentum is
 #: checked against ``p_0 + k nu``.
 CHECKPOINTS = 8
+#: Host memory of :func:`classify` per point, bytes (besides the ensemble's arrays): the initial
+#: points (16 B), the momentum record (``CHECKPOINTS`` x 8 B), a copy of the state per checkpoint
+#: (56 B), the per-point results (~70 B) and :func:`identify_nu`'s temporaries (three records at a
+#: time). Measured peak ~340 B (``tests/test_limits.py`` checks it stays below this).
+CLASSIFY_HOST_BYTES_PER_POINT = 448
+
+
+def check_census_memory(points: int) -> None:
+    """ResourceError, before anything is allocated, if a census of ``points`` does not fit here."""
+    points = check_count("points", points, 1, MAX_POINTS)
+    device, host = IndicatorEnsemble.bytes_per_point(), CLASSIFY_HOST_BYTES_PER_POINT
+    detail = f"{device} B of state and indicators and {host} B of working memory per point"
+    check_memory(f"a census of {points} points", points * (device + host), detail)
 
 
 def excursion_bound(m: int | np.ndarray) -> int | np.ndarray:
@@ -109,6 +125,20 @@ def identify_nu(rise: np.ndarray, times: np.ndarray, m_max: int = DEFAULT_M_MAX)
     common = np.gcd(w, m)
     common[common == 0] = 1
     return w // common, m // common
+
+
+def _check_finite(state: dict[str, np.ndarray], indicators: dict[str, np.ndarray], steps: int) -> None:
+    """NonFiniteStateError if a point's FTLE, MEGNO or FLI is not finite: a NaN compares False
+    with any threshold, so it would be classified regular, silently."""
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        values = {"FTLE": lyapunov(state, steps), **indicators}
+    for name, v in values.items():
+        bad = int(np.count_nonzero(~np.isfinite(v)))
+        if bad:
+            raise NonFiniteStateError(
+                f"{bad} of {v.size} points have a non-finite {name} after {steps} steps (the tangent "
+                "overflowed float64): they cannot be classified"
+            )
 
 
 @dataclass(frozen=True)
@@ -181,8 +211,10 @@ def classify(
     classifier = check_choice("classifier", classifier, CLASSIFIERS)
     steps = check_count("steps", steps, 1)
     m_max = check_count("m_max", m_max, 1)
+    threshold = check_optional(check_real, "threshold", threshold, 0.0)
     if steps < min_steps(m_max):  # fail before the run, not after it
         identify_nu(np.zeros((1, 0)), np.array([steps]), m_max)
+    check_census_memory(np.size(x0))
     ens = IndicatorEnsemble(params, x0, p0, threads=threads, device=device)
     times = np.unique(np.linspace(0, steps, CHECKPOINTS + 1).astype(np.int64)[1:])
     rise = np.empty((times.size, ens.points))
@@ -191,6 +223,7 @@ def classify(
         rise[i] = acceleration(ens.state(), ens.step) * ens.step
     state = ens.state()
     ind = ens.indicators()
+    _check_finite(state, ind, steps)
     if threshold is None:
         threshold = default_threshold(classifier, steps)
     w, m = identify_nu(rise, times, m_max)

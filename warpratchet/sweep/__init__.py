@@ -19,7 +19,16 @@ The package has three rooms:
 """
 
 from ..spec import SweepSpec
-from .paths import DOMAINS, fixed_b1_path, grid_points, k_path, line_path, maximal_path
+from .paths import (
+    DOMAINS,
+    SWEEP_BYTES_PER_POINT,
+    check_sweep_size,
+    fixed_b1_path,
+    grid_points,
+    k_path,
+    line_path,
+    maximal_path,
+)
 from .reading import read_definition, read_sweep
 from .records import (
     FORMAT,
@@ -41,6 +50,8 @@ __all__ = [
     "grid_points",
     "k_path",
     "DOMAINS",
+    "SWEEP_BYTES_PER_POINT",
+    "check_sweep_size",
     "point_seed",
     "run_point",
     "run_sweep",

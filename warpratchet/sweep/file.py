@@ -154,8 +154,9 @@ class SweepFile:
     def _existing_rows(self, replace: str) -> list[dict[str, Any]]:
         if not h5py.is_hdf5(self.path):
             raise FileFormatError(f"{self.path} exists and is not an HDF5 sweep file; {replace}")
+        # No HDF5 lock: this process holds the exclusive claim on the file (HDF5's would collide).
         with open_for_reading(
-            self.path, foreign=f"exists and is not a warpratchet sweep file; {replace}"
+            self.path, foreign=f"exists and is not a warpratchet sweep file; {replace}", locking=False
         ) as f:
             version = attr_value(f.attrs.get("format_version"))
             if version not in READABLE_VERSIONS:

@@ -4,7 +4,8 @@ The maximal path of Eq. (b2max) (Fig. 7), the straight lines ``b1 = b2 / a`` of 
 (Fig. 8 has ``a = 1/3``), fixed ``b1`` with varying ``b2`` (Fig. 9: ``K = 2.99``,
 ``b1 = 0.25``), a ``(b1, b2)`` grid optionally masked to an existence domain of Fig. 3
 (Figs. 5 and 6) and paths in ``K``. Each returns a list of :class:`MapParams`; any such list is
-a sweep. Pure: no Warp, no I/O.
+a sweep. No Warp, no I/O; a sweep's size is checked against the memory it needs
+(:func:`check_sweep_size`, the one system query of :mod:`warpratchet.limits`).
 """
 
 from __future__ import annotations
@@ -15,9 +16,34 @@ import numpy as np
 
 from .. import theory
 from ..errors import ParameterError, check_real
+from ..limits import check_memory
 from ..params import MapParams
 
-__all__ = ["DOMAINS", "maximal_path", "line_path", "fixed_b1_path", "grid_points", "k_path"]
+__all__ = [
+    "DOMAINS",
+    "SWEEP_BYTES_PER_POINT",
+    "check_sweep_size",
+    "maximal_path",
+    "line_path",
+    "fixed_b1_path",
+    "grid_points",
+    "k_path",
+]
+
+#: Host memory of a sweep per point, bytes: its parameters (a MapParams and a row of the parameter
+#: table), its summary row (a dict of Python numbers, ~1.3 kB kept), and the transient copies of
+#: the rows (the list returned, their JSON text): a sweep's peak grows by ~4.6 kB per point.
+#: ``tests/test_limits.py`` measures that growth and checks it stays below this.
+SWEEP_BYTES_PER_POINT = 8192
+
+
+def check_sweep_size(count: int, what: str) -> None:
+    """ResourceError, before the points are built, if a sweep of ``count`` points does not fit here.
+
+    ``what`` names the request and its size, e.g. ``"--b2 '0:1:1000000000000' (10^12 points)"``.
+    """
+    check_memory(what, count * SWEEP_BYTES_PER_POINT, f"{SWEEP_BYTES_PER_POINT} B per point")
+
 
 #: Existence domains of Fig. 3, as returned by :func:`warpratchet.theory.domain`.
 DOMAINS: tuple[str, ...] = ("LR", "L", "R", "none")
@@ -80,9 +106,12 @@ def grid_points(
     Fig. 3 (:func:`warpratchet.theory.domain`) is in it are kept, e.g. ``{"LR"}`` for Eq. (Aa).
     """
     wanted = _domain_set(domain)
+    b1_axis, b2_axis = _values("b1_values", b1_values), _values("b2_values", b2_values)
+    count = b1_axis.size * b2_axis.size
+    check_sweep_size(count, f"a grid of {b1_axis.size} x {b2_axis.size} = {count} (b1, b2) points")
     out = []
-    for b1 in _values("b1_values", b1_values):
-        for b2 in _values("b2_values", b2_values):
+    for b1 in b1_axis:
+        for b2 in b2_axis:
             if b1 + b2 >= 1.0:
                 continue
             p = MapParams(K, float(b1), float(b2))

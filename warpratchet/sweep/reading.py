@@ -54,11 +54,18 @@ def definition_mismatch(f: h5py.File, params: np.ndarray, spec: SweepSpec) -> st
     return None
 
 
-def open_for_reading(path: str | os.PathLike, foreign: str = "is not a warpratchet sweep file") -> h5py.File:
-    """Open a sweep file read-only (SWMR-read while a sweep writes it, or after a killed one)."""
+def open_for_reading(
+    path: str | os.PathLike, foreign: str = "is not a warpratchet sweep file", *, locking: bool | None = None
+) -> h5py.File:
+    """Open a sweep file read-only (SWMR-read while a sweep writes it, or after a killed one).
+
+    With HDF5's default locking (also beside the caller's own ``h5py.File`` of it), or
+    ``locking=False`` for a caller that holds its own claim on the file
+    (:func:`warpratchet._files.open_h5`).
+    """
     path = os.fspath(path)
     try:
-        f = open_h5(path, locking=False)
+        f = open_h5(path, locking=locking)
     except OSError as exc:
         raise FileFormatError(f"cannot read sweep file {path}: {first_line(exc)}") from None
     try:

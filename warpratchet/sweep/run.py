@@ -29,11 +29,13 @@ from .. import theory
 from ..ensemble import Ensemble
 from ..errors import ParameterError, check_count
 from ..history import History
+from ..limits import kernel_range_error
 from ..observables import summarize
 from ..params import MapParams
 from ..progress import ProgressBar
 from ..spec import SweepSpec, check_setting
 from .file import ROW_FIELDS, SweepFile
+from .paths import check_sweep_size
 
 __all__ = ["point_seed", "run_point", "run_sweep"]
 
@@ -210,13 +212,24 @@ def run_sweep(
     """
     if not isinstance(spec, SweepSpec):
         raise ParameterError(f"spec = {spec!r} is not a SweepSpec")
+    if isinstance(points, (str, bytes)) or not hasattr(points, "__iter__"):
+        raise ParameterError(f"points = {points!r} is not a sequence of MapParams or (K, b1, b2) triples")
     params_list = [_as_params(p) for p in points]
     if not params_list:
         raise ParameterError("a sweep needs at least 1 point; got 0")
+    check_sweep_size(len(params_list), f"a sweep of {len(params_list)} points")
+    for index, params in enumerate(params_list):  # every point before the first runs
+        why = kernel_range_error(params)
+        if why is not None:
+            raise ParameterError(
+                f"sweep point {index} (K={params.K!r}, b1={params.b1!r}, b2={params.b2!r}): {why}"
+            )
     if threads is not None:
         threads = check_setting("threads", threads)
     elif client is not None:
         threads = 1  # Dask: a worker thread stands for one core
+    if client is None:  # here: every point's ensemble must fit this machine (Dask workers check theirs)
+        Ensemble.check_fits(spec.points)
     if client is not None and not isinstance(client, str):
         _connect(client)  # checks the type (and that Dask is installed) before any file is touched
     table = np.array([[p.K, p.b1, p.b2] for p in params_list], dtype=np.float64)
