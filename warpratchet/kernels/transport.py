@@ -42,8 +42,9 @@ CARRY_FIELDS = ("last_visit", "flight_gain", "flight_start")
 _LaneInts = wp.types.vector(length=INTERLEAVE, dtype=wp.int64)
 _LaneBytes = wp.types.vector(length=INTERLEAVE, dtype=wp.uint8)
 _Counts = wp.types.vector(length=3 * BINS, dtype=wp.int64)
-#: Steps buffered by the CPU hooks between two decodes (a renormalisation check every 8 steps).
-_ROWS = 8
+#: Steps buffered by the CPU hooks between two decodes (at a renormalisation check, every 8 steps,
+#: once fewer than 8 rows are free): a decode spills the step's registers, so it is kept rare.
+_ROWS = 32
 
 
 @wp.struct
@@ -63,6 +64,7 @@ class _Accumulators:
     counts: _Counts  # this thread's histograms
     # The CPU hooks' own state (.transport_cpu): buffered codes and byte trackers.
     buffer: wp.types.vector(length=_ROWS * INTERLEAVE, dtype=wp.uint8)
+    strip: wp.types.vector(length=_ROWS, dtype=wp.uint32)  # in_strip per buffered row, bit k = lane k
     rows: int  # rows of the buffer in use
     base: wp.int64  # global step before buffer row 0
     ready: int  # 1 once the trackers hold the carry
@@ -126,7 +128,8 @@ def _after_step_cpu(acc: wp.ref[_Accumulators], s: wp.ref[Lanes], global_step: w
 
 @wp.func
 def _after_check_cpu(acc: wp.ref[_Accumulators], s: wp.ref[Lanes], check: wp.int64):
-    _decode_cpu(acc)
+    if acc.rows > wp.static(_ROWS - 8):  # the next 8 steps would not fit
+        _decode_cpu(acc)
 
 
 @wp.func

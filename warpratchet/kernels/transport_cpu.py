@@ -5,13 +5,15 @@ Counting inside the step loop, lane by lane, costs far more than the step (a CPU
 70x with the portable hooks' scalar loop, 2-3x with the trackers kept as vectors beside the
 state (the registers spill). So the CPU hooks split the work:
 
-* after each step (``after_step``): one byte per lane, ``code = gain + 2 + 8 * in_strip`` (the
-  step's facts; ``|gain| <= 2`` since ``|K f| < 2``), is stored into a small buffer of rows;
-* after each renormalisation check and at the end of the launch (``store``): the buffered rows
-  are decoded with the trackers as byte vectors (all lanes of a row at once), each row's events
-  counted by lengths ``< 2``, ``< 4``, ``< 8`` with a popcount of the event mask; the rare events
+* after each step (``after_step``): the step's facts, as they come out of it, into a buffer of
+  32 rows: the top byte of each lane's ``gain`` (``|gain| <= 2`` since ``|K f| < 2``; each value
+  has its own top byte) and the ``in_strip`` lanes as a 32-bit mask;
+* at the renormalisation check (every 8 steps) that leaves fewer than 8 rows free, and at the end
+  of the launch (``store``): the rows become codes ``gain + 2 + 8 * in_strip`` and are decoded
+  with the trackers as byte vectors (all lanes of a row at once), each row's events counted by
+  lengths ``< 2``, ``< 4``, ``< 8`` with a popcount of the event mask; the rare events
   of length 8 or more go to the thread's histogram one by one. Where the CPU has AVX-512 and
-  GFNI, a full block of 8 rows is decoded at once instead: transposed into bit planes (one byte
+  GFNI, each full block of 8 rows is decoded at once instead: transposed into bit planes (one byte
   per lane, bit i = row i), its visits and gain changes found with bit tricks on the planes.
 
 Trackers: ``age`` (steps since the last visit to B), ``flen`` (steps of the run in progress) are
@@ -28,8 +30,8 @@ __all__ = ["BINS", "CAP", "STEP_CPU", "DECODE_CPU"]
 #: Histogram bins: bin ``k`` counts lengths ``2^k <= L < 2^(k+1)``; 64 cover every int64 step count.
 BINS = 64
 
-#: A byte tracker above this after a block moves its excess to the int64 part (a block adds at
-#: most 8 steps, so bytes stay below 256).
+#: A byte tracker above this after a block moves its excess to the int64 part (a decode adds at
+#: most 32 steps, so bytes stay below 256).
 CAP = 64
 
 _MASK = "unsigned int" if INTERLEAVE == 32 else "unsigned short"
@@ -41,20 +43,39 @@ typedef bool bv __attribute__((ext_vector_type({INTERLEAVE})));
 typedef {_MASK} mask_t;
 """
 
-#: ``after_step``: store this step's codes as a row of the buffer.
+#: ``after_step``: store this step's facts as they come out of the step, with no conversion: the
+#: top byte of each lane's ``gain`` (a double in -2..2: C0, BF, 00, 3F, 40 hex, one per value) into
+#: the buffer row, and the ``in_strip`` lanes as one bit each into ``strip`` (a 32-bit mask from
+#: the step's own comparisons). The decoder turns them into codes (``_CODES_CPU``).
 STEP_CPU = f"""
 typedef double v_t __attribute__((ext_vector_type({INTERLEAVE})));
 typedef unsigned char u8v __attribute__((ext_vector_type({INTERLEAVE})));
+typedef unsigned char raw_t __attribute__((ext_vector_type({8 * INTERLEAVE})));
+typedef bool bv __attribute__((ext_vector_type({INTERLEAVE})));
 v_t gain, in_strip;
 __builtin_memcpy(&gain, &s.gain, sizeof(v_t));
 __builtin_memcpy(&in_strip, &s.in_strip, sizeof(v_t));
-const v_t two = 2.0, ten = 10.0;
-const v_t outside = gain + two, inside = gain + ten;
-const v_t code = in_strip != 0.0 ? inside : outside;
-const u8v row = __builtin_convertvector(code, u8v);
+const raw_t raw = __builtin_bit_cast(raw_t, gain);
+const u8v top = __builtin_shufflevector(raw, raw, {", ".join(str(8 * k + 7) for k in range(INTERLEAVE))});
+const bv inside = __builtin_convertvector(in_strip != 0.0, bv);
 if (acc.rows == 0) acc.base = global_step - 1;
-__builtin_memcpy(&acc.buffer.c[acc.rows * {INTERLEAVE}], &row, sizeof(u8v));
+__builtin_memcpy(&acc.buffer.c[acc.rows * {INTERLEAVE}], &top, sizeof(u8v));
+acc.strip.c[acc.rows] = __builtin_bit_cast({_MASK}, inside);
 acc.rows = acc.rows + 1;
+"""
+
+#: The buffered rows into codes ``gain + 2 + 8 * in_strip``, in place: the top byte ``t`` of the
+#: gain gives its magnitude (bit 0: 1, bit 6: 2) and sign (bit 7).
+_CODES_CPU = """
+for (int r = 0; r < rows; r++) {
+    u8v top;
+    __builtin_memcpy(&top, &acc.buffer.c[r * N], N);
+    const u8v magnitude = (top & one) | ((top >> 5) & two);
+    const bv negative = __builtin_convertvector((top >> 7) != 0, bv);
+    const bv strip = __builtin_bit_cast(bv, (mask_t)acc.strip.c[r]);
+    const u8v code = (negative ? two - magnitude : two + magnitude) | (strip ? eight : (u8v)0);
+    __builtin_memcpy(&acc.buffer.c[r * N], &code, N);
+}
 """
 
 
@@ -76,7 +97,7 @@ _STAGE4 = [[(b * 4 + lane // 8) * 8 + 7 - lane % 8 for lane in range(32)] for b 
 
 _BLOCK_CPU = f"""
 #if defined(__GFNI__) && defined(__AVX512BW__)
-if (rows == 8) {{
+for (; r0 + 8 <= rows; r0 += 8) {{
     typedef char i8x64 __attribute__((vector_size(64)));
     typedef unsigned char u8x64 __attribute__((ext_vector_type(64)));
     typedef unsigned char u8x128 __attribute__((ext_vector_type(128)));
@@ -84,10 +105,10 @@ if (rows == 8) {{
     const long long T = 0x8040201008040201LL; /* byte j = 1 << j: the transpose */
     const i64x8 transpose = {{T, T, T, T, T, T, T, T}};
     u8x64 rows01, rows23, rows45, rows67;
-    __builtin_memcpy(&rows01, &acc.buffer.c[0], 64);
-    __builtin_memcpy(&rows23, &acc.buffer.c[64], 64);
-    __builtin_memcpy(&rows45, &acc.buffer.c[128], 64);
-    __builtin_memcpy(&rows67, &acc.buffer.c[192], 64);
+    __builtin_memcpy(&rows01, &acc.buffer.c[r0 * N + 0], 64);
+    __builtin_memcpy(&rows23, &acc.buffer.c[r0 * N + 64], 64);
+    __builtin_memcpy(&rows45, &acc.buffer.c[r0 * N + 128], 64);
+    __builtin_memcpy(&rows67, &acc.buffer.c[r0 * N + 192], 64);
 #define GF_T(v) ((u8x64)__builtin_ia32_vgf2p8affineqb_v64qi((i8x64)transpose, (i8x64)(v), 0))
     const u8x64 s01 = GF_T(rows01), s23 = GF_T(rows23), s45 = GF_T(rows45), s67 = GF_T(rows67);
     const u8x128 lo = __builtin_shufflevector(s01, s23, {_indices(range(128))});
@@ -150,9 +171,9 @@ if (rows == 8) {{
     t[8] += n_up;
     flen = ends ? clz8(B) + one : flen + eight;
     u8v last_row;
-    __builtin_memcpy(&last_row, &acc.buffer.c[7 * N], N);
+    __builtin_memcpy(&last_row, &acc.buffer.c[(r0 + 7) * N], N);
     fcode = last_row & seven;
-}} else
+}}
 #endif
 """
 
@@ -199,7 +220,7 @@ __builtin_memcpy(&flen, &acc.flen, N);
 __builtin_memcpy(&valid_bytes, &acc.valid, N);
 const bv valid = __builtin_convertvector(valid_bytes, bv);
 bv visited = __builtin_convertvector(visited_bytes, bv);
-/* cumulative tallies per lane (at most 8 per block, bytes do not overflow): returns < 2, < 4, < 8;
+/* cumulative tallies per lane (at most 32 per decode, bytes do not overflow): returns < 2, < 4, < 8;
    flight ends < 2, < 4, < 8; positive ones < 2, < 4, < 8 */
 u8v t[9];
 for (int i = 0; i < 9; i++) t[i] = 0;
@@ -263,9 +284,11 @@ auto clz8 = [&](u8v v) {{ return ctz8(reverse8(v)); }};
 auto lowest8 = [](u8v v) {{ return v & (u8v)(0 - v); }};
 (void)reverse8; (void)clz8; (void)lowest8; (void)ctz8; (void)popcount8;
 """
+    + _CODES_CPU
+    + "int r0 = 0;\n"
     + _BLOCK_CPU
     + f"""
-for (int r = 0; r < rows; r++) {{
+for (int r = r0; r < rows; r++) {{
     u8v code;
     __builtin_memcpy(&code, &acc.buffer.c[r * N], N);
     const bv in_strip = __builtin_convertvector((code & eight) != 0, bv);
