@@ -44,7 +44,7 @@ _LaneBytes = wp.types.vector(length=INTERLEAVE, dtype=wp.uint8)
 _Counts = wp.types.vector(length=3 * BINS, dtype=wp.int64)
 #: Steps buffered by the CPU hooks between two decodes (at a renormalisation check, every 8 steps,
 #: once fewer than 8 rows are free): a decode spills the step's registers, so it is kept rare.
-_ROWS = 32
+_ROWS = 64
 
 
 @wp.struct
@@ -142,7 +142,8 @@ def _store_cpu(arrays: _Arrays, acc: _Accumulators, first: int, spacing: int, n:
                 a.last_visit[k] = a.base - (a.age_extra[k] + wp.int64(a.age[k]))
             else:
                 a.last_visit[k] = wp.int64(-1)
-            a.flight_gain[k] = wp.int64(a.fcode[k]) - wp.int64(2)
+            code = wp.int64(a.fcode[k])  # gain codes 0, 1, 2, 5, 6 for 0, 1, 2, -1, -2 (.transport_cpu)
+            a.flight_gain[k] = wp.where(code >= wp.int64(4), wp.int64(4) - code, code)
             a.flight_start[k] = a.base - (a.flen_extra[k] + wp.int64(a.flen[k])) + wp.int64(1)
     # The cumulative tallies of lengths < 2, < 4, < 8 give bins 0, 1, 2 (.transport_cpu).
     t = a.tallies

@@ -6,7 +6,7 @@ Counting inside the step loop, lane by lane, costs far more than the step (a CPU
 state (the registers spill). So the CPU hooks split the work:
 
 * after each step (``after_step``): the step's facts, as they come out of it, into a buffer of
-  32 rows: the top byte of each lane's ``gain`` (``|gain| <= 2`` since ``|K f| < 2``; each value
+  64 rows: the top byte of each lane's ``gain`` (``|gain| <= 2`` since ``|K f| < 2``; each value
   has its own top byte) and the ``in_strip`` lanes as a 32-bit mask;
 * at the renormalisation check (every 8 steps) that leaves fewer than 8 rows free, and at the end
   of the launch (``store``): the rows become codes ``gain + 2 + 8 * in_strip`` and are decoded
@@ -31,7 +31,7 @@ __all__ = ["BINS", "CAP", "STEP_CPU", "DECODE_CPU"]
 BINS = 64
 
 #: A byte tracker above this after a block moves its excess to the int64 part (a decode adds at
-#: most 32 steps, so bytes stay below 256).
+#: most 64 steps, so bytes stay below 256).
 CAP = 64
 
 _MASK = "unsigned int" if INTERLEAVE == 32 else "unsigned short"
@@ -64,16 +64,16 @@ acc.strip.c[acc.rows] = __builtin_bit_cast({_MASK}, inside);
 acc.rows = acc.rows + 1;
 """
 
-#: The buffered rows into codes ``gain + 2 + 8 * in_strip``, in place: the top byte ``t`` of the
-#: gain gives its magnitude (bit 0: 1, bit 6: 2) and sign (bit 7).
+#: The buffered rows into codes ``gain code + 8 * in_strip``, in place. The gain code is three bits
+#: of the gain's top byte ``t`` (C0, BF, 00, 3F, 40 hex for -2 .. 2): bit 0 of ``t`` (|gain| = 1),
+#: bit 6 (|gain| = 2), bit 7 (the sign), so gains 0, 1, 2, -1, -2 have codes 0, 1, 2, 5, 6 (a gain
+#: is never -0.0: it is ``floor(t) + lift`` with ``lift`` 1.0 or +0.0).
 _CODES_CPU = """
 for (int r = 0; r < rows; r++) {
     u8v top;
     __builtin_memcpy(&top, &acc.buffer.c[r * N], N);
-    const u8v magnitude = (top & one) | ((top >> 5) & two);
-    const bv negative = __builtin_convertvector((top >> 7) != 0, bv);
     const bv strip = __builtin_bit_cast(bv, (mask_t)acc.strip.c[r]);
-    const u8v code = (negative ? two - magnitude : two + magnitude) | (strip ? eight : (u8v)0);
+    const u8v code = (top & one) | ((top >> 5) & (u8v)6) | (strip ? eight : (u8v)0);
     __builtin_memcpy(&acc.buffer.c[r * N], &code, N);
 }
 """
@@ -146,12 +146,12 @@ for (; r0 + 8 <= rows; r0 += 8) {{
     /* -- flights: bit i of B = the gain code changes at row i (row 0 against the block before) -- */
     const u8v p0 = fcode & one, p1 = (fcode >> 1) & one, p2 = fcode >> 2;
     const u8v B = (G0 ^ ((G0 + G0) | p0)) | (G1 ^ ((G1 + G1) | p1)) | (G2 ^ ((G2 + G2) | p2));
-    const u8v up_rows = G2 | (G1 & G0), down_rows = ~(G2 | G1);
+    const u8v up_rows = ~G2 & (G1 | G0), down_rows = G2;
     const u8v fb = ctz8(B);
     const bv ends = __builtin_convertvector(B != zero, bv) & valid;
     const u8v length0 = flen + fb;
-    const bv moving = ends & __builtin_convertvector(fcode != two, bv);
-    const bv up0 = moving & __builtin_convertvector(fcode > two, bv);
+    const bv moving = ends & __builtin_convertvector(fcode != 0, bv);
+    const bv up0 = moving & __builtin_convertvector(fcode < four, bv);
     const bv c8 = tally_flights(moving, up0, length0);
     rare_flights(__builtin_bit_cast(mask_t, ends & ~c8), length0, fcode);
     /* runs that start at a boundary and end at the next one within the block (the last carries) */
@@ -200,7 +200,8 @@ if (!acc.ready) {{
         const long long a = visited[k] ? b0 - last_visit[k] : 0;
         age[k] = a < {CAP} ? (unsigned char)a : {CAP};
         age_extra[k] = a < {CAP} ? 0 : a - {CAP};
-        fcode[k] = valid[k] ? (unsigned char)(flight_gain[k] + 2) : 2;
+        const long long g = valid[k] ? flight_gain[k] : 0;
+        fcode[k] = (unsigned char)(g < 0 ? 4 - g : g);
         const long long l = b0 - flight_start[k] + 1;
         flen[k] = l < {CAP} ? (unsigned char)l : {CAP};
         flen_extra[k] = l < {CAP} ? 0 : l - {CAP};
@@ -220,7 +221,7 @@ __builtin_memcpy(&flen, &acc.flen, N);
 __builtin_memcpy(&valid_bytes, &acc.valid, N);
 const bv valid = __builtin_convertvector(valid_bytes, bv);
 bv visited = __builtin_convertvector(visited_bytes, bv);
-/* cumulative tallies per lane (at most 32 per decode, bytes do not overflow): returns < 2, < 4, < 8;
+/* cumulative tallies per lane (at most 64 per decode, bytes do not overflow): returns < 2, < 4, < 8;
    flight ends < 2, < 4, < 8; positive ones < 2, < 4, < 8 */
 u8v t[9];
 for (int i = 0; i < 9; i++) t[i] = 0;
@@ -247,8 +248,8 @@ auto rare_flights = [&](mask_t bits, u8v length, u8v code) {{
     __builtin_memcpy(c, &code, N);
     for (; bits; bits &= bits - 1) {{
         const int k = __builtin_ctz(bits);
-        const int histogram = c[k] > 2 ? {BINS} : {2 * BINS};
-        if (c[k] != 2) acc.counts.c[histogram + {BINS - 1} - __builtin_clzll(flen_extra[k] + l[k])] += 1;
+        const int histogram = c[k] < 4 ? {BINS} : {2 * BINS};
+        if (c[k] != 0) acc.counts.c[histogram + {BINS - 1} - __builtin_clzll(flen_extra[k] + l[k])] += 1;
         flen_extra[k] = 0;
     }}
 }};
@@ -299,8 +300,8 @@ for (int r = r0; r < rows; r++) {{
     rare_returns(__builtin_bit_cast(mask_t, in_strip & valid & ~r8), age);
     /* flights: a step with another gain ends the run in progress (if it gained) */
     const bv same = __builtin_convertvector(gain == fcode, bv);
-    const bv ends = ~same & __builtin_convertvector(fcode != two, bv) & valid;
-    const bv up = ends & __builtin_convertvector(fcode > two, bv);
+    const bv ends = ~same & __builtin_convertvector(fcode != 0, bv) & valid;
+    const bv up = ends & __builtin_convertvector(fcode < four, bv);
     const bv f8 = tally_flights(ends, up, flen);
     rare_flights(__builtin_bit_cast(mask_t, ~same & valid & ~f8), flen, fcode);
     age = in_strip ? (u8v)0 : age;
