@@ -44,7 +44,7 @@ _LaneBytes = wp.types.vector(length=INTERLEAVE, dtype=wp.uint8)
 _Counts = wp.types.vector(length=3 * BINS, dtype=wp.int64)
 #: Steps buffered by the CPU hooks between two decodes (at a renormalisation check, every 8 steps,
 #: once fewer than 8 rows are free): a decode spills the step's registers, so it is kept rare.
-_ROWS = 64
+_ROWS = 128
 
 
 @wp.struct

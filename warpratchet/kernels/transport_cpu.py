@@ -6,13 +6,13 @@ Counting inside the step loop, lane by lane, costs far more than the step (a CPU
 state (the registers spill). So the CPU hooks split the work:
 
 * after each step (``after_step``): the step's facts, as they come out of it, into a buffer of
-  64 rows: the top byte of each lane's ``gain`` (``|gain| <= 2`` since ``|K f| < 2``; each value
+  128 rows: the top byte of each lane's ``gain`` (``|gain| <= 2`` since ``|K f| < 2``; each value
   has its own top byte) and the ``in_strip`` lanes as a 32-bit mask;
 * at the renormalisation check (every 8 steps) that leaves fewer than 8 rows free, and at the end
-  of the launch (``store``): the rows become codes ``gain + 2 + 8 * in_strip`` and are decoded
-  with the trackers as byte vectors (all lanes of a row at once), each row's events counted by
-  lengths ``< 2``, ``< 4``, ``< 8`` with a popcount of the event mask; the rare events
-  of length 8 or more go to the thread's histogram one by one. Where the CPU has AVX-512 and
+  of the launch (``store``): the rows are decoded (the gain codes are three bits of the top
+  bytes, ``_GAIN_CODES``) with the trackers as byte vectors (all lanes of a row at once), each
+  row's events counted by lengths ``< 2``, ``< 4``, ``< 8`` with a popcount of the event mask;
+  the rare events of length 8 or more go to the thread's histogram one by one. Where the CPU has AVX-512 and
   GFNI, each full block of 8 rows is decoded at once instead: transposed into bit planes (one byte
   per lane, bit i = row i), its visits and gain changes found with bit tricks on the planes.
 
@@ -31,7 +31,7 @@ __all__ = ["BINS", "CAP", "STEP_CPU", "DECODE_CPU"]
 BINS = 64
 
 #: A byte tracker above this after a block moves its excess to the int64 part (a decode adds at
-#: most 64 steps, so bytes stay below 256).
+#: most 128 steps, so bytes stay below 256).
 CAP = 64
 
 _MASK = "unsigned int" if INTERLEAVE == 32 else "unsigned short"
@@ -46,7 +46,7 @@ typedef {_MASK} mask_t;
 #: ``after_step``: store this step's facts as they come out of the step, with no conversion: the
 #: top byte of each lane's ``gain`` (a double in -2..2: C0, BF, 00, 3F, 40 hex, one per value) into
 #: the buffer row, and the ``in_strip`` lanes as one bit each into ``strip`` (a 32-bit mask from
-#: the step's own comparisons). The decoder turns them into codes (``_CODES_CPU``).
+#: the step's own comparisons). The decoder reads gain codes from the top bytes (_GAIN_CODES).
 STEP_CPU = f"""
 typedef double v_t __attribute__((ext_vector_type({INTERLEAVE})));
 typedef unsigned char u8v __attribute__((ext_vector_type({INTERLEAVE})));
@@ -64,19 +64,10 @@ acc.strip.c[acc.rows] = __builtin_bit_cast({_MASK}, inside);
 acc.rows = acc.rows + 1;
 """
 
-#: The buffered rows into codes ``gain code + 8 * in_strip``, in place. The gain code is three bits
-#: of the gain's top byte ``t`` (C0, BF, 00, 3F, 40 hex for -2 .. 2): bit 0 of ``t`` (|gain| = 1),
-#: bit 6 (|gain| = 2), bit 7 (the sign), so gains 0, 1, 2, -1, -2 have codes 0, 1, 2, 5, 6 (a gain
-#: is never -0.0: it is ``floor(t) + lift`` with ``lift`` 1.0 or +0.0).
-_CODES_CPU = """
-for (int r = 0; r < rows; r++) {
-    u8v top;
-    __builtin_memcpy(&top, &acc.buffer.c[r * N], N);
-    const bv strip = __builtin_bit_cast(bv, (mask_t)acc.strip.c[r]);
-    const u8v code = (top & one) | ((top >> 5) & (u8v)6) | (strip ? eight : (u8v)0);
-    __builtin_memcpy(&acc.buffer.c[r * N], &code, N);
-}
-"""
+# _GAIN_CODES: a row's gain code is three bits of the gain's top byte ``t`` (C0, BF, 00, 3F, 40 hex
+# for -2 .. 2): bit 0 of ``t`` (|gain| = 1), bit 6 (|gain| = 2), bit 7 (the sign), so gains 0, 1,
+# 2, -1, -2 have codes 0, 1, 2, 5, 6 (a gain is never -0.0: it is ``floor(t) + lift`` with
+# ``lift`` 1.0 or +0.0). The block decoding takes the three bit planes straight from the top bytes.
 
 
 def _indices(values) -> str:
@@ -91,8 +82,10 @@ def _indices(values) -> str:
 # gather for each (plane, octet) the 8 rows' bytes, row 7 - p at byte p. Stage 3: transpose again:
 # byte k of word (plane b, octet j) = lane 8 j + 7 - k over the rows. Stage 4: lanes in order.
 _STAGE2 = [
-    ((7 - p) * 4 + j) * 8 + b for b in range(4) for j in range(4) for p in range(8)
-]  # output byte (b * 4 + j) * 8 + p
+    ((7 - p) * 4 + j) * 8 + b for b in (0, 6, 7) for j in range(4) for p in range(8)
+]  # output byte (b * 4 + j) * 8 + p: the gain code's planes are bits 0, 6, 7 of the top bytes
+# the in_strip plane from the rows' masks (bits reversed: byte j of a row = its octet j)
+_STAGE2 += [128 + (7 - p) * 4 + j for j in range(4) for p in range(8)]
 _STAGE4 = [[(b * 4 + lane // 8) * 8 + 7 - lane % 8 for lane in range(32)] for b in range(4)]
 
 _BLOCK_CPU = f"""
@@ -111,9 +104,18 @@ for (; r0 + 8 <= rows; r0 += 8) {{
     __builtin_memcpy(&rows67, &acc.buffer.c[r0 * N + 192], 64);
 #define GF_T(v) ((u8x64)__builtin_ia32_vgf2p8affineqb_v64qi((i8x64)transpose, (i8x64)(v), 0))
     const u8x64 s01 = GF_T(rows01), s23 = GF_T(rows23), s45 = GF_T(rows45), s67 = GF_T(rows67);
+    u8x64 strip_rows = 0;
+    __builtin_memcpy(&strip_rows, &acc.strip.c[r0], 32);
+    /* x = the masks' bytes, matrix T: bit i of each byte becomes bit 7 - i */
+    const u8x64 strip_reversed =
+        (u8x64)__builtin_ia32_vgf2p8affineqb_v64qi((i8x64)strip_rows, (i8x64)transpose, 0);
     const u8x128 lo = __builtin_shufflevector(s01, s23, {_indices(range(128))});
     const u8x128 hi = __builtin_shufflevector(s45, s67, {_indices(range(128))});
-    const u8x128 gathered = __builtin_shufflevector(lo, hi, {_indices(_STAGE2)});
+    const u8x128 gain_planes = __builtin_shufflevector(lo, hi, {_indices(_STAGE2[:96] + [0] * 32)});
+    const u8x128 strip_planes =
+        __builtin_shufflevector(strip_reversed, strip_reversed, {_indices(range(128))});
+    const u8x128 gathered =
+        __builtin_shufflevector(gain_planes, strip_planes, {_indices(list(range(96)) + _STAGE2[96:])});
     const u8x64 g01 = __builtin_shufflevector(gathered, gathered, {_indices(range(64))});
     const u8x64 g23 = __builtin_shufflevector(gathered, gathered, {_indices(range(64, 128))});
     const u8x64 t01 = GF_T(g01), t23 = GF_T(g23);
@@ -172,7 +174,7 @@ for (; r0 + 8 <= rows; r0 += 8) {{
     flen = ends ? clz8(B) + one : flen + eight;
     u8v last_row;
     __builtin_memcpy(&last_row, &acc.buffer.c[(r0 + 7) * N], N);
-    fcode = last_row & seven;
+    fcode = gain_code(last_row);
 }}
 #endif
 """
@@ -221,7 +223,7 @@ __builtin_memcpy(&flen, &acc.flen, N);
 __builtin_memcpy(&valid_bytes, &acc.valid, N);
 const bv valid = __builtin_convertvector(valid_bytes, bv);
 bv visited = __builtin_convertvector(visited_bytes, bv);
-/* cumulative tallies per lane (at most 64 per decode, bytes do not overflow): returns < 2, < 4, < 8;
+/* cumulative tallies per lane (at most 128 per decode, bytes do not overflow): returns < 2, < 4, < 8;
    flight ends < 2, < 4, < 8; positive ones < 2, < 4, < 8 */
 u8v t[9];
 for (int i = 0; i < 9; i++) t[i] = 0;
@@ -283,17 +285,18 @@ auto reverse8 = [](u8v v) {{
 }};
 auto clz8 = [&](u8v v) {{ return ctz8(reverse8(v)); }};
 auto lowest8 = [](u8v v) {{ return v & (u8v)(0 - v); }};
-(void)reverse8; (void)clz8; (void)lowest8; (void)ctz8; (void)popcount8;
+/* the gain code of a gain's top byte (_GAIN_CODES) */
+auto gain_code = [](u8v top) {{ return (top & (u8v)1) | ((top >> 5) & (u8v)6); }};
+(void)reverse8; (void)clz8; (void)lowest8; (void)ctz8; (void)popcount8; (void)gain_code;
 """
-    + _CODES_CPU
     + "int r0 = 0;\n"
     + _BLOCK_CPU
     + f"""
 for (int r = r0; r < rows; r++) {{
-    u8v code;
-    __builtin_memcpy(&code, &acc.buffer.c[r * N], N);
-    const bv in_strip = __builtin_convertvector((code & eight) != 0, bv);
-    const u8v gain = code & seven;
+    u8v top;
+    __builtin_memcpy(&top, &acc.buffer.c[r * N], N);
+    const bv in_strip = __builtin_bit_cast(bv, (mask_t)acc.strip.c[r]);
+    const u8v gain = gain_code(top);
     /* returns: a visit closes the gap of age + 1 steps */
     age = age + one;
     const bv r8 = tally_returns(in_strip & visited, age);
