@@ -30,7 +30,7 @@ import warp as wp
 
 from .advance import Variant, advance_kernel
 from .step import INTERLEAVE, Lanes
-from .transport_cpu import BINS, DECODE_CPU, STEP_CPU
+from .transport_cpu import BINS, DECODE_CPU, FINISH_CPU, STEP_CPU
 
 __all__ = ["BINS", "HISTOGRAMS", "CARRY_FIELDS", "advance_map_transport", "TRANSPORT"]
 
@@ -132,31 +132,15 @@ def _after_check_cpu(acc: wp.ref[_Accumulators], s: wp.ref[Lanes], check: wp.int
         _decode_cpu(acc)
 
 
+@wp.func_native(FINISH_CPU)
+def _finish_cpu(acc: wp.ref[_Accumulators], arrays: _Arrays, first: int, spacing: int, n: int): ...
+
+
 @wp.func
 def _store_cpu(arrays: _Arrays, acc: _Accumulators, first: int, spacing: int, n: int):
     a = acc
     _decode_cpu(a)  # the rows since the last check
-    if a.ready != 0:  # the trackers back to absolute global steps (else the carry is as loaded)
-        for k in range(wp.static(INTERLEAVE)):
-            if a.visited[k] != wp.uint8(0):
-                a.last_visit[k] = a.base - (a.age_extra[k] + wp.int64(a.age[k]))
-            else:
-                a.last_visit[k] = wp.int64(-1)
-            code = wp.int64(a.fcode[k])  # gain codes 0, 1, 2, 5, 6 for 0, 1, 2, -1, -2 (.transport_cpu)
-            a.flight_gain[k] = wp.where(code >= wp.int64(4), wp.int64(4) - code, code)
-            a.flight_start[k] = a.base - (a.flen_extra[k] + wp.int64(a.flen[k])) + wp.int64(1)
-    # The cumulative tallies of lengths < 2, < 4, < 8 give bins 0, 1, 2 (.transport_cpu).
-    t = a.tallies
-    a.counts[0] = a.counts[0] + t[0]
-    a.counts[1] = a.counts[1] + t[1] - t[0]
-    a.counts[2] = a.counts[2] + t[2] - t[1]
-    a.counts[BINS] = a.counts[BINS] + t[6]
-    a.counts[BINS + 1] = a.counts[BINS + 1] + t[7] - t[6]
-    a.counts[BINS + 2] = a.counts[BINS + 2] + t[8] - t[7]
-    a.counts[2 * BINS] = a.counts[2 * BINS] + t[3] - t[6]
-    a.counts[2 * BINS + 1] = a.counts[2 * BINS + 1] + (t[4] - t[3]) - (t[7] - t[6])
-    a.counts[2 * BINS + 2] = a.counts[2 * BINS + 2] + (t[5] - t[4]) - (t[8] - t[7])
-    _store(arrays, a, first, spacing, n)
+    _finish_cpu(a, arrays, first, spacing, n)
 
 
 @wp.func
