@@ -30,7 +30,7 @@ import warp as wp
 
 from .advance import Variant, advance_kernel
 from .step import INTERLEAVE, Lanes
-from .transport_cpu import BINS, DECODE_CPU, STEP_CPU
+from .transport_cpu import BINS, DECODE_CPU, FINISH_CPU, STEP_CPU
 
 __all__ = ["BINS", "HISTOGRAMS", "CARRY_FIELDS", "advance_map_transport", "TRANSPORT"]
 
@@ -42,8 +42,9 @@ CARRY_FIELDS = ("last_visit", "flight_gain", "flight_start")
 _LaneInts = wp.types.vector(length=INTERLEAVE, dtype=wp.int64)
 _LaneBytes = wp.types.vector(length=INTERLEAVE, dtype=wp.uint8)
 _Counts = wp.types.vector(length=3 * BINS, dtype=wp.int64)
-#: Steps buffered by the CPU hooks between two decodes (a renormalisation check every 8 steps).
-_ROWS = 8
+#: Steps buffered by the CPU hooks between two decodes (at a renormalisation check, every 8 steps,
+#: once fewer than 8 rows are free): a decode spills the step's registers, so it is kept rare.
+_ROWS = 128
 
 
 @wp.struct
@@ -63,6 +64,7 @@ class _Accumulators:
     counts: _Counts  # this thread's histograms
     # The CPU hooks' own state (.transport_cpu): buffered codes and byte trackers.
     buffer: wp.types.vector(length=_ROWS * INTERLEAVE, dtype=wp.uint8)
+    strip: wp.types.vector(length=_ROWS, dtype=wp.uint32)  # in_strip per buffered row, bit k = lane k
     rows: int  # rows of the buffer in use
     base: wp.int64  # global step before buffer row 0
     ready: int  # 1 once the trackers hold the carry
@@ -126,33 +128,20 @@ def _after_step_cpu(acc: wp.ref[_Accumulators], s: wp.ref[Lanes], global_step: w
 
 @wp.func
 def _after_check_cpu(acc: wp.ref[_Accumulators], s: wp.ref[Lanes], check: wp.int64):
-    _decode_cpu(acc)
+    if acc.rows > wp.static(_ROWS - 8):  # the next 8 steps would not fit
+        _decode_cpu(acc)
+
+
+@wp.func_native(FINISH_CPU)
+def _finish_cpu(acc: wp.ref[_Accumulators], arrays: _Arrays, first: int, spacing: int, n: int): ...
 
 
 @wp.func
-def _store_cpu(arrays: _Arrays, acc: _Accumulators, first: int, spacing: int, n: int):
-    a = acc
-    _decode_cpu(a)  # the rows since the last check
-    if a.ready != 0:  # the trackers back to absolute global steps (else the carry is as loaded)
-        for k in range(wp.static(INTERLEAVE)):
-            if a.visited[k] != wp.uint8(0):
-                a.last_visit[k] = a.base - (a.age_extra[k] + wp.int64(a.age[k]))
-            else:
-                a.last_visit[k] = wp.int64(-1)
-            a.flight_gain[k] = wp.int64(a.fcode[k]) - wp.int64(2)
-            a.flight_start[k] = a.base - (a.flen_extra[k] + wp.int64(a.flen[k])) + wp.int64(1)
-    # The cumulative tallies of lengths < 2, < 4, < 8 give bins 0, 1, 2 (.transport_cpu).
-    t = a.tallies
-    a.counts[0] = a.counts[0] + t[0]
-    a.counts[1] = a.counts[1] + t[1] - t[0]
-    a.counts[2] = a.counts[2] + t[2] - t[1]
-    a.counts[BINS] = a.counts[BINS] + t[6]
-    a.counts[BINS + 1] = a.counts[BINS + 1] + t[7] - t[6]
-    a.counts[BINS + 2] = a.counts[BINS + 2] + t[8] - t[7]
-    a.counts[2 * BINS] = a.counts[2 * BINS] + t[3] - t[6]
-    a.counts[2 * BINS + 1] = a.counts[2 * BINS + 1] + (t[4] - t[3]) - (t[7] - t[6])
-    a.counts[2 * BINS + 2] = a.counts[2 * BINS + 2] + (t[5] - t[4]) - (t[8] - t[7])
-    _store(arrays, a, first, spacing, n)
+def _store_cpu(arrays: _Arrays, acc: wp.ref[_Accumulators], first: int, spacing: int, n: int):
+    # by reference: a copy of the accumulators (6.7 KB with the buffer) per launch and thread is
+    # measurable on short launches
+    _decode_cpu(acc)  # the rows since the last check
+    _finish_cpu(acc, arrays, first, spacing, n)
 
 
 @wp.func
