@@ -169,6 +169,29 @@ def compare(
     }
 
 
+def ratios(t: dict[str, Any], sink: str, share: str, shares: list[float]) -> dict[str, Any]:
+    """The timing columns of a case from :func:`compare`'s ``t``: best plain and ``{sink}_seconds``,
+    their wall and CPU ratios, the best ``{share}_share_of_kernel`` of ``shares`` and ``identical``."""
+    return {
+        "plain_seconds": t["plain"],
+        f"{sink}_seconds": t["sink"],
+        "wall_ratio": t["sink"] / t["plain"],
+        "cpu_ratio": t["sink_cpu"] / t["plain_cpu"],
+        f"{share}_share_of_kernel": min(shares),
+        "identical": t["identical"],
+    }
+
+
+def ratio_columns(sink: tuple[str, str], share: tuple[str, str]) -> list[tuple[str, str, str]]:
+    """The table columns of :func:`ratios`, ``(header, key, format)``; ``sink`` and ``share`` are
+    ``(header, name)`` as given to it."""
+    return [
+        ("plain s", "plain_seconds", ".3f"), (sink[0], f"{sink[1]}_seconds", ".3f"),
+        ("wall x", "wall_ratio", ".3f"), ("cpu x", "cpu_ratio", ".3f"),
+        (share[0], f"{share[1]}_share_of_kernel", ".2f%"), ("same", "identical", "yes"),
+    ]  # fmt: skip
+
+
 def print_table(rows: list[dict[str, Any]], columns: list[tuple[str, str, str]]) -> None:
     """A right-aligned text table: ``columns`` are ``(header, key, format spec)``; a spec ending
     in ``%`` prints the value times 100 with a percent sign, ``"yes"`` prints yes or NO."""

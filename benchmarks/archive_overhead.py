@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from _sink_overhead import Timed, compare, emit, log, measure_cases, options, warm_up
+from _sink_overhead import Timed, compare, emit, log, measure_cases, options, ratio_columns, ratios, warm_up
 
 from warpratchet.archive import ArchiveSink
 
@@ -43,9 +43,7 @@ QUICK_CASES = [(10_000, 20_000), (100_000, 2_000)]
 #: The text table: (header, key, format).
 COLUMNS = [
     ("points", "points", "d"), ("steps", "steps", "d"), ("chunk", "chunk_steps", "d"), ("rows", "rows", "d"),
-    ("plain s", "plain_seconds", ".3f"), ("archived s", "archived_seconds", ".3f"),
-    ("wall x", "wall_ratio", ".3f"), ("cpu x", "cpu_ratio", ".3f"),
-    ("sink/kernel", "sink_share_of_kernel", ".2f%"), ("same", "identical", "yes"),
+    *ratio_columns(("archived s", "archived"), ("sink/kernel", "sink")),
 ]  # fmt: skip
 
 
@@ -85,12 +83,7 @@ def measure(points: int, steps: int, repeat: int, folder: Path) -> dict[str, Any
         "rows": last["rows"],
         "checkpoints": last["checkpoints"],
         "file_bytes": last["file_bytes"],
-        "plain_seconds": t["plain"],
-        "archived_seconds": t["sink"],
-        "wall_ratio": t["sink"] / t["plain"],
-        "cpu_ratio": t["sink_cpu"] / t["plain_cpu"],
-        "sink_share_of_kernel": min(shares),
-        "identical": t["identical"],
+        **ratios(t, "archived", "sink", shares),
     }
 
 

@@ -31,7 +31,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from _sink_overhead import Timed, compare, emit, log, measure_cases, options, warm_up
+from _sink_overhead import Timed, compare, emit, log, measure_cases, options, ratio_columns, ratios, warm_up
 
 from warpratchet.history import History
 
@@ -42,9 +42,7 @@ QUICK_CASES = [(10_000, 20_000), (100_000, 2_000)]
 #: The text table: (header, key, format).
 COLUMNS = [
     ("points", "points", "d"), ("steps", "steps", "d"), ("rows", "rows", "d"), ("blocks", "blocks", "d"),
-    ("plain s", "plain_seconds", ".3f"), ("history s", "history_seconds", ".3f"),
-    ("wall x", "wall_ratio", ".3f"), ("cpu x", "cpu_ratio", ".3f"),
-    ("history/kernel", "history_share_of_kernel", ".2f%"), ("same", "identical", "yes"),
+    *ratio_columns(("history s", "history"), ("history/kernel", "history")),
 ]  # fmt: skip
 
 
@@ -70,12 +68,7 @@ def measure(points: int, steps: int, repeat: int, folder: Path) -> dict[str, Any
         "steps": steps,
         "rows": last["rows"],
         "blocks": last["blocks"],
-        "plain_seconds": t["plain"],
-        "history_seconds": t["sink"],
-        "wall_ratio": t["sink"] / t["plain"],
-        "cpu_ratio": t["sink_cpu"] / t["plain_cpu"],
-        "history_share_of_kernel": min(shares),
-        "identical": t["identical"],
+        **ratios(t, "history", "history", shares),
     }
 
 
