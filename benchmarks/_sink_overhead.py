@@ -169,6 +169,60 @@ def compare(
     }
 
 
+def case_row(
+    points: int,
+    steps: int,
+    own: dict[str, Any],
+    t: dict[str, Any],
+    names: tuple[str, str],
+    shares: list[float],
+) -> dict[str, Any]:
+    """A case's row: ``points``, ``steps``, the benchmark's ``own`` columns, then the timings of
+    :func:`compare`'s ``t``: best plain and ``{sink}_seconds``, their wall and CPU ratios, the best
+    ``{share}_share_of_kernel`` of ``shares`` and ``identical``, where ``names = (sink, share)``."""
+    sink, share = names
+    return {
+        "points": points,
+        "steps": steps,
+        **own,
+        "plain_seconds": t["plain"],
+        f"{sink}_seconds": t["sink"],
+        "wall_ratio": t["sink"] / t["plain"],
+        "cpu_ratio": t["sink_cpu"] / t["plain_cpu"],
+        f"{share}_share_of_kernel": min(shares),
+        "identical": t["identical"],
+    }
+
+
+def columns_for(
+    own: list[tuple[str, str, str]], sink: tuple[str, str], share: tuple[str, str]
+) -> list[tuple[str, str, str]]:
+    """The table columns of :func:`case_row`'s rows, ``(header, key, format)``: ``own`` are the
+    benchmark's, ``sink`` and ``share`` are ``(header, name)`` of its timing columns."""
+    return [
+        ("points", "points", "d"), ("steps", "steps", "d"), *own,
+        ("plain s", "plain_seconds", ".3f"), (sink[0], f"{sink[1]}_seconds", ".3f"),
+        ("wall x", "wall_ratio", ".3f"), ("cpu x", "cpu_ratio", ".3f"),
+        (share[0], f"{share[1]}_share_of_kernel", ".2f%"), ("same", "identical", "yes"),
+    ]  # fmt: skip
+
+
+def finish(
+    args: argparse.Namespace,
+    budget: float,
+    summary: dict[str, Any],
+    cases: list[dict[str, Any]],
+    columns: list[tuple[str, str, str]],
+    note: str,
+) -> int:
+    """Print the report of :func:`case_row` rows (:func:`emit`: ``budget``, the benchmark's
+    ``summary``, ``quick`` and the ``cases``) and return the exit status: 0 if every case ended
+    in bitwise equal states, else 1."""
+    report = {"budget": budget, **summary, "quick": args.quick, "cases": cases}
+    emit(report, args.json, columns, note)
+    return 0 if all(case["identical"] for case in cases) else 1
+
+
 def print_table(rows: list[dict[str, Any]], columns: list[tuple[str, str, str]]) -> None:
     """A right-aligned text table: ``columns`` are ``(header, key, format spec)``; a spec ending
     in ``%`` prints the value times 100 with a percent sign, ``"yes"`` prints yes or NO."""

@@ -32,7 +32,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from _sink_overhead import Timed, compare, emit, log, measure_cases, options, warm_up
+from _sink_overhead import Timed, case_row, columns_for, compare, finish, log, measure_cases, options, warm_up
 
 from warpratchet.archive import ArchiveSink
 
@@ -41,12 +41,8 @@ BUDGET = 1.05
 CASES = [(10_000, 120_000), (100_000, 12_000), (1_000_000, 2_400)]
 QUICK_CASES = [(10_000, 20_000), (100_000, 2_000)]
 #: The text table: (header, key, format).
-COLUMNS = [
-    ("points", "points", "d"), ("steps", "steps", "d"), ("chunk", "chunk_steps", "d"), ("rows", "rows", "d"),
-    ("plain s", "plain_seconds", ".3f"), ("archived s", "archived_seconds", ".3f"),
-    ("wall x", "wall_ratio", ".3f"), ("cpu x", "cpu_ratio", ".3f"),
-    ("sink/kernel", "sink_share_of_kernel", ".2f%"), ("same", "identical", "yes"),
-]  # fmt: skip
+OWN_COLUMNS = [("chunk", "chunk_steps", "d"), ("rows", "rows", "d")]
+COLUMNS = columns_for(OWN_COLUMNS, ("archived s", "archived"), ("sink/kernel", "sink"))
 
 
 def measure(points: int, steps: int, repeat: int, folder: Path) -> dict[str, Any]:
@@ -78,20 +74,8 @@ def measure(points: int, steps: int, repeat: int, folder: Path) -> dict[str, Any
     last = t["measured"][-1]
     shares = [info["share"] for info in t["measured"]]
     log(f"  sink {100 * min(shares):.2f}% of the kernel time (best)")
-    return {
-        "points": points,
-        "steps": steps,
-        "chunk_steps": last["chunk_steps"],
-        "rows": last["rows"],
-        "checkpoints": last["checkpoints"],
-        "file_bytes": last["file_bytes"],
-        "plain_seconds": t["plain"],
-        "archived_seconds": t["sink"],
-        "wall_ratio": t["sink"] / t["plain"],
-        "cpu_ratio": t["sink_cpu"] / t["plain_cpu"],
-        "sink_share_of_kernel": min(shares),
-        "identical": t["identical"],
-    }
+    own = {key: last[key] for key in ("chunk_steps", "rows", "checkpoints", "file_bytes")}
+    return case_row(points, steps, own, t, ("archived", "sink"), shares)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -100,16 +84,14 @@ def main(argv: list[str] | None = None) -> int:
     cases = QUICK_CASES if args.quick else CASES
     results = measure_cases(cases, repeat, measure, "warpratchet-archive-bench-")
     default = results[0]
-    report = {
-        "budget": BUDGET,
+    summary = {
         "default_case": {"points": default["points"], "steps": default["steps"]},
         "within_budget": default["wall_ratio"] <= BUDGET,
         "sink_within_budget": default["sink_share_of_kernel"] <= BUDGET - 1,
-        "quick": args.quick,
-        "cases": results,
     }
-    emit(report, args.json, COLUMNS, f"budget at the default settings: wall ratio <= {BUDGET}")
-    return 0 if all(r["identical"] for r in results) else 1
+    return finish(
+        args, BUDGET, summary, results, COLUMNS, f"budget at the default settings: wall ratio <= {BUDGET}"
+    )
 
 
 if __name__ == "__main__":

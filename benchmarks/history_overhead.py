@@ -31,7 +31,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from _sink_overhead import Timed, compare, emit, log, measure_cases, options, warm_up
+from _sink_overhead import Timed, case_row, columns_for, compare, finish, log, measure_cases, options, warm_up
 
 from warpratchet.history import History
 
@@ -40,12 +40,11 @@ BUDGET = 1.05
 CASES = [(10_000, 120_000), (1_000_000, 120_000)]
 QUICK_CASES = [(10_000, 20_000), (100_000, 2_000)]
 #: The text table: (header, key, format).
-COLUMNS = [
-    ("points", "points", "d"), ("steps", "steps", "d"), ("rows", "rows", "d"), ("blocks", "blocks", "d"),
-    ("plain s", "plain_seconds", ".3f"), ("history s", "history_seconds", ".3f"),
-    ("wall x", "wall_ratio", ".3f"), ("cpu x", "cpu_ratio", ".3f"),
-    ("history/kernel", "history_share_of_kernel", ".2f%"), ("same", "identical", "yes"),
-]  # fmt: skip
+COLUMNS = columns_for(
+    [("rows", "rows", "d"), ("blocks", "blocks", "d")],
+    ("history s", "history"),
+    ("history/kernel", "history"),
+)
 
 
 def measure(points: int, steps: int, repeat: int, folder: Path) -> dict[str, Any]:
@@ -65,18 +64,9 @@ def measure(points: int, steps: int, repeat: int, folder: Path) -> dict[str, Any
     shares = [info["share"] for info in t["measured"]]
     log(f"  history {100 * min(shares):.2f}% of the kernel time (best)")
     last = t["measured"][-1]
-    return {
-        "points": points,
-        "steps": steps,
-        "rows": last["rows"],
-        "blocks": last["blocks"],
-        "plain_seconds": t["plain"],
-        "history_seconds": t["sink"],
-        "wall_ratio": t["sink"] / t["plain"],
-        "cpu_ratio": t["sink_cpu"] / t["plain_cpu"],
-        "history_share_of_kernel": min(shares),
-        "identical": t["identical"],
-    }
+    return case_row(
+        points, steps, {"rows": last["rows"], "blocks": last["blocks"]}, t, ("history", "history"), shares
+    )
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -87,15 +77,12 @@ def main(argv: list[str] | None = None) -> int:
     for points, steps in cases:  # 10^6 points: one repetition (a run takes a few minutes)
         reps = repeat if points * steps <= 2e9 else 1
         results += measure_cases([(points, steps)], reps, measure, "warpratchet-history-bench-")
-    report = {
-        "budget": BUDGET,
+    summary = {
         "within_budget": all(r["wall_ratio"] <= BUDGET for r in results),
         "share_within_budget": all(r["history_share_of_kernel"] <= BUDGET - 1 for r in results),
-        "quick": args.quick,
-        "cases": results,
     }
-    emit(report, args.json, COLUMNS, f"budget: wall ratio <= {BUDGET} (history share <= {BUDGET - 1:.0%})")
-    return 0 if all(r["identical"] for r in results) else 1
+    note = f"budget: wall ratio <= {BUDGET} (history share <= {BUDGET - 1:.0%})"
+    return finish(args, BUDGET, summary, results, COLUMNS, note)
 
 
 if __name__ == "__main__":

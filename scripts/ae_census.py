@@ -30,11 +30,12 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
 import time
+
+from _options import options
 
 from warpratchet import MapParams, theory
 from warpratchet.sumrule import census
@@ -52,6 +53,12 @@ CASES = [
 ]
 SCAN_K = [2.9, 2.95, 2.98, 2.99, 2.995, 3.0, 3.005, 3.01, 3.02, 3.05, 3.1]
 SCAN_B1, SCAN_B2 = 0.1, 0.01
+#: The size options: ``flag: (what, default, default with --quick)``.
+SIZES = {
+    "--points": ("points per census", 100_000, 20_000),
+    "--steps": ("n of the table", 100_000, 20_000),
+    "--scan-steps": ("n of the K scan", 50_000, 20_000),
+}
 
 
 def analyse(c) -> dict:
@@ -97,17 +104,8 @@ def analyse(c) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="2e4 points, n = 2e4, 5 scan points")
-    ap.add_argument("--points", type=int, help="points per census (default 100000; quick 20000)")
-    ap.add_argument("--steps", type=int, help="n of the table (default 100000; quick 20000)")
-    ap.add_argument("--scan-steps", type=int, help="n of the K scan (default 50000; quick 20000)")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--json", action="store_true", help="print every number as one JSON object on stdout")
-    args = ap.parse_args(argv)
-    points = args.points or (20_000 if args.quick else 100_000)
-    steps = args.steps or (20_000 if args.quick else 100_000)
-    scan_steps = args.scan_steps or (20_000 if args.quick else 50_000)
+    _, args = options(__doc__, argv, quick="2e4 points, n = 2e4, 5 scan points", seed=0, sizes=SIZES)
+    points, steps, scan_steps = args.points, args.steps, args.scan_steps
     scan = [2.95, 2.99, 3.0, 3.01, 3.05] if args.quick else SCAN_K
     out = sys.stderr if args.json else sys.stdout
     started = time.perf_counter()

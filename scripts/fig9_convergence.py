@@ -32,6 +32,7 @@ import sys
 import time
 
 import numpy as np
+from _options import options
 
 from warpratchet import Ensemble, MapParams
 from warpratchet.convergence import diffusion_exponent
@@ -39,6 +40,8 @@ from warpratchet.history import History
 from warpratchet.sweep import point_seed
 
 K, B1 = 2.99, 0.25
+#: The size options: ``flag: (what, default, default with --quick)``.
+SIZES = {"--points": ("points per ensemble", 10_000, 2000), "--steps": ("iterations n", 120_000, 20_000)}
 
 
 def record(params: MapParams, points: int, steps: int, init: str, seed: int, rule: str) -> History:
@@ -49,17 +52,12 @@ def record(params: MapParams, points: int, steps: int, init: str, seed: int, rul
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true")
-    ap.add_argument("--init", choices=("strip", "torus"), default="strip")
-    ap.add_argument("--threshold-rule", choices=("strict", "positive"), default="strict")
-    ap.add_argument("--points", type=int)
-    ap.add_argument("--steps", type=int)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--json", action="store_true")
-    args = ap.parse_args(argv)
-    points = args.points or (2000 if args.quick else 10_000)
-    steps = args.steps or (20_000 if args.quick else 120_000)
+    def extra(ap: argparse.ArgumentParser) -> None:
+        ap.add_argument("--init", choices=("strip", "torus"), default="strip")
+        ap.add_argument("--threshold-rule", choices=("strict", "positive"), default="strict")
+
+    _, args = options(__doc__, argv, quick=None, seed=0, sizes=SIZES, extra=extra)
+    points, steps = args.points, args.steps
     b2_values = np.linspace(0.005, 0.14, 28)
     indices = [0, 5, 8, 13, 20, 27] if args.quick else range(28)
     out = sys.stderr if args.json else sys.stdout

@@ -38,7 +38,6 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import sys
@@ -46,6 +45,7 @@ import time
 from collections.abc import Callable
 
 import numpy as np
+from _options import options
 
 from warpratchet import MapParams, theory
 from warpratchet.ensemble import sample_strip, sample_torus
@@ -57,6 +57,13 @@ K, B1 = 2.99, 0.25
 PAPER_SIGMA = {0.005: 0.4787, 0.14: 0.8326}
 TOLERANCE = 0.015
 SAMPLER_CODE = {"strip": 0, "torus": 1}
+#: The size options: ``flag: (what, default, default with --quick)``.
+SIZES = {
+    "--points": ("points per ensemble", 10_000, 2000),
+    "--steps": ("iterations n", 120_000, 30_000),
+    "--replicas": ("independent ensembles at each end", 4, 2),
+    "--path-points": ("b2 values on 0.005..0.14", 28, 4),
+}
 
 
 def points_for(params: MapParams, init: str, n: int, seed: int, index: int, replica: int):
@@ -195,20 +202,9 @@ def fmt_se(value: float, se: float, digits: int) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="small ensembles, short runs (about a minute)")
-    ap.add_argument("--points", type=int, help="points per ensemble (default 10000; quick 2000)")
-    ap.add_argument("--steps", type=int, help="iterations n (default 120000; quick 30000)")
-    ap.add_argument("--replicas", type=int, help="independent ensembles at each end (default 4; quick 2)")
-    ap.add_argument("--path-points", type=int, help="b2 values on 0.005..0.14 (default 28; quick 4)")
-    ap.add_argument("--seed", type=int, default=2024)
-    ap.add_argument("--json", action="store_true", help="print every number as one JSON object on stdout")
-    args = ap.parse_args(argv)
-    quick = args.quick
-    n_points = args.points or (2000 if quick else 10_000)
-    steps = args.steps or (30_000 if quick else 120_000)
-    replicas = args.replicas or (2 if quick else 4)
-    path_count = args.path_points or (4 if quick else 28)
+    quick_help = "small ensembles, short runs (about a minute)"
+    ap, args = options(__doc__, argv, quick=quick_help, seed=2024, sizes=SIZES)
+    n_points, steps, replicas, path_count = args.points, args.steps, args.replicas, args.path_points
     if n_points < 2 or steps < 13_824 or replicas < 2 or path_count < 2:
         ap.error(
             "need points >= 2, steps >= 13824 (nu identification up to m = 12), "

@@ -102,9 +102,13 @@ class MapParams:
         """Rotation angle of the elliptic middle branch, ``2 cos(alpha) = 2 - K`` (Eq. eig)."""
         return math.acos(1.0 - 0.5 * self.K)
 
-    def as_dict(self) -> dict[str, float]:
-        """Parameters and derived coefficients, as stored in archives and JSON output."""
-        return {"K": self.K, "b1": self.b1, "b2": self.b2, "l1": self.l1, "l2": self.l2, "c": self.c}
+    def as_dict(self, derived: bool = True) -> dict[str, float]:
+        """Parameters and derived coefficients, as stored in archives and JSON output.
+
+        With ``derived=False`` only ``K, b1, b2``, under RunSpec's names (a run's settings, a report).
+        """
+        free = {"K": self.K, "b1": self.b1, "b2": self.b2}
+        return {**free, "l1": self.l1, "l2": self.l2, "c": self.c} if derived else free
 
     # -- the force, Eq. (fx), in NumPy ----------------------------------------------------------
     def force(self, x: np.ndarray | float) -> np.ndarray:

@@ -383,15 +383,5 @@ class SweepSpec(_Spec):
 
     def at(self, params: MapParams, seed: int, threads: int | None = None) -> RunSpec:
         """The :class:`RunSpec` of one point: this spec at ``params`` with the point's own ``seed``."""
-        return RunSpec(
-            K=params.K,
-            b1=params.b1,
-            b2=params.b2,
-            init=self.init,
-            points=self.points,
-            seed=seed,
-            steps=self.steps,
-            threshold=self.threshold,
-            threshold_rule=self.threshold_rule,
-            threads=threads,
-        )
+        # Every field of this spec is a RunSpec field of the same name (one name per concept).
+        return RunSpec(**params.as_dict(derived=False), **{**self.as_dict(), "seed": seed}, threads=threads)

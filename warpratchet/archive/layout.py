@@ -112,11 +112,8 @@ def run_settings(
     snapshot_points: int,
 ) -> dict[str, Any]:
     """The settings of a new archive of ``ensemble`` under RunSpec's names (:func:`read_settings`' form)."""
-    p = ensemble.params
     return {
-        "K": p.K,
-        "b1": p.b1,
-        "b2": p.b2,
+        **ensemble.params.as_dict(derived=False),
         "init": ensemble.sampler,
         "points": ensemble.points,
         "seed": ensemble.seed,

@@ -18,6 +18,7 @@ from version 1 (warpratchet 0.1.0, still read) in:
 from __future__ import annotations
 
 from ..errors import FileFormatError, NonFiniteStateError  # NonFiniteStateError: re-exported
+from ..observables import SUMMARY_DESCRIPTIONS
 
 __all__ = [
     "FORMAT",
@@ -107,10 +108,7 @@ DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "series/A": ("1/iteration", "mean acceleration A_n of Eq. (An) over chaotic points"),
     "series/A_stderr": ("1/iteration", "standard error of A: std / sqrt(chaotic points)"),
     "series/lyapunov": ("1/iteration", "mean finite-time Lyapunov exponent of chaotic points"),
-    "series/lyapunov_std": ("1/iteration", "standard deviation of the FTLE of chaotic points"),
-    "series/lyapunov_min": ("1/iteration", "smallest FTLE of a chaotic point"),
-    "series/chaotic_fraction": ("1", "fraction of points with FTLE above threshold"),
-    "series/chaotic_points": ("1", "number of points with FTLE above threshold"),
+    **{f"series/{name}": description for name, description in SUMMARY_DESCRIPTIONS.items()},
     "series/threshold": ("1/iteration", "FTLE threshold used for the row"),
     "series/wall_time": ("s", "kernel seconds of the chunk"),
     "series/unix_time": ("seconds since 1970-01-01 00:00:00 UTC", "when the row was written"),

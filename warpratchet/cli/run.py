@@ -53,9 +53,7 @@ def run_report(ensemble, seconds: float, steps_run: int, threshold: float | None
     # whether A can be trusted: reliable, reason, classification_bound (observables.reliability)
     p = ensemble.params
     return {
-        "K": p.K,
-        "b1": p.b1,
-        "b2": p.b2,
+        **p.as_dict(derived=False),
         "points": ensemble.points,
         "steps": ensemble.step,
         "seed": ensemble.seed,

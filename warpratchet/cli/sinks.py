@@ -96,9 +96,7 @@ def _resumable(args: argparse.Namespace, spec: RunSpec) -> int:
         raise UsageError(f"{exc}; {replace}") from None
     points = math.isqrt(spec.points) ** 2 if spec.init == "grid" else spec.points  # as run
     asked = {
-        "K": spec.K,
-        "b1": spec.b1,
-        "b2": spec.b2,
+        **spec.params.as_dict(derived=False),
         "init": spec.init,
         "points": points,
         "seed": spec.seed,

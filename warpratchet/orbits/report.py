@@ -67,9 +67,7 @@ def orbits_report(params: MapParams, period: int, *, enumeration: Enumeration | 
         )
     kinds = Counter(orbit.kind for orbit in result.orbits)
     return {
-        "K": params.K,
-        "b1": params.b1,
-        "b2": params.b2,
+        **params.as_dict(derived=False),
         "period": result.period,
         "orbits": [orbit_json(orbit) for orbit in result.orbits],
         "families": [family_json(family) for family in result.families],

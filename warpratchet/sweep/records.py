@@ -11,6 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from ..observables import SUMMARY_DESCRIPTIONS
+
 __all__ = [
     "FORMAT",
     "FORMAT_VERSION",
@@ -87,10 +89,7 @@ ROW_DESCRIPTIONS: dict[str, tuple[str, str]] = {
     "A": ("1/iteration", "mean A_n of Eq. (An) over chaotic points"),
     "A_stderr": ("1/iteration", "standard error of A"),
     "lyapunov": ("1/iteration", "mean FTLE of chaotic points"),
-    "lyapunov_std": ("1/iteration", "standard deviation of the FTLE of chaotic points"),
-    "lyapunov_min": ("1/iteration", "smallest FTLE of a chaotic point"),
-    "chaotic_fraction": ("1", "fraction of points with FTLE above threshold"),
-    "chaotic_points": ("1", "number of points with FTLE above threshold"),
+    **SUMMARY_DESCRIPTIONS,
     "points": ("1", "ensemble size run"),
     "steps": ("iteration", "iterations run"),
     "seed": ("1", "the point's own seed, point_seed(spec.seed, index)"),

@@ -86,20 +86,14 @@ class TransportEnsemble(Ensemble):
         self._lock = threading.Lock()
 
     @classmethod
-    def from_state(
-        cls,
-        params: MapParams,
-        state: dict[str, np.ndarray],
-        step: int,
-        *,
-        transport: TransportState | None = None,
-        **kwargs,
-    ) -> TransportEnsemble:
+    def from_state(cls, *args, transport: TransportState | None = None, **kwargs) -> TransportEnsemble:
         """Rebuild an ensemble from :meth:`state` and :meth:`transport_state` output, exactly.
 
-        Without ``transport``, counting starts afresh at ``step``.
+        The arguments of :meth:`Ensemble.from_state <warpratchet.ensemble.Ensemble.from_state>`
+        (``params, state, step``, ...), passed on as given, and ``transport``; without it,
+        counting starts afresh at ``step``.
         """
-        obj = super().from_state(params, state, step, **kwargs)
+        obj = super().from_state(*args, **kwargs)
         obj._start_counting(transport)
         return obj
 
