@@ -40,33 +40,23 @@ __all__ = ["Salvage", "salvage"]
 
 @dataclass(frozen=True)
 class Salvage:
-    """The valid part of an archive, up to its newest good checkpoint.
+    """The valid part of an archive, up to its newest good checkpoint (one field per part)."""
 
-    Attributes
-    ----------
-    ensemble : Ensemble
-        Restored bit for bit at ``step``.
-    state : dict of ndarray
-        The checkpoint's state (keys ``STATE_FIELDS``), at ``step``.
-    step : int
-        The checkpoint's step (the initial step if there is no checkpoint).
-    layout : dict
-        Keyword arguments of :func:`~warpratchet.archive.layout.create` (metadata, stored
-        settings, initial state, snapshot indices).
-    series : dict of ndarray
-        The rows up to ``step``, keys :data:`SERIES_FIELDS`.
-    snapshots : Snapshots
-        The snapshots up to ``step``.
-    history : History or None
-        The ``/history`` records up to ``step`` (feature ``history``), also ``layout["history"]``.
-    """
-
+    #: Restored bit for bit at ``step``.
     ensemble: Ensemble
+    #: The checkpoint's state (keys ``STATE_FIELDS``), at ``step``.
     state: dict[str, np.ndarray]
+    #: The checkpoint's step (the initial step if there is no checkpoint).
     step: int
+    #: Keyword arguments of :func:`~warpratchet.archive.layout.create` (metadata, stored settings,
+    #: initial state, snapshot indices).
     layout: dict[str, Any]
+    #: The rows up to ``step``, keys :data:`SERIES_FIELDS`.
     series: dict[str, np.ndarray]
+    #: The snapshots up to ``step``.
     snapshots: Snapshots
+    #: The ``/history`` records up to ``step`` (feature ``history``; else None), also
+    #: ``layout["history"]``.
     history: History | None = None
     #: The ``/transport`` rows up to ``step`` (feature ``transport``; else None).
     transport_rows: dict[str, np.ndarray] | None = None
