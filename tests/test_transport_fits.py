@@ -5,13 +5,15 @@ errors against the scatter of independent replicas.
 """
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
 
 from warpratchet import History, MapParams
+from warpratchet.observables import default_lyapunov_threshold, lyapunov
 from warpratchet.transport import TransportEnsemble
-from warpratchet.transport.diffusion import spread_steps
+from warpratchet.transport.diffusion import spread_moments, spread_steps
 from warpratchet.transport.fits import (
     bin_masses,
     default_tail_bins,
@@ -137,3 +139,20 @@ def test_the_spread_of_a_transport_run_is_historys_variance():
     np.testing.assert_allclose(var[common], [rows[steps[i]] for i in common], rtol=1e-9)
     fit = ens.diffusion(decades=1.0)
     assert fit.rows == 8 and np.isfinite(fit.mu) and fit.stderr > 0  # 316 .. 2371
+
+
+@pytest.mark.parametrize("points", [1, 5, (1 << 16) + 3, 3 * (1 << 16)])
+def test_spread_moments_in_blocks_and_threads_equal_one_pass_bitwise(points):
+    """The rows are computed in blocks of points, on threads: the same bits as over all points at once."""
+    ens = TransportEnsemble.sample(MapParams(3.0, 0.1, 0.01), points, "strip", seed=2, threads=2)
+    ens.run(300)
+    state = ens.state()
+    p0 = state["p0"]
+    dp = state["winding"] + (state["q"] - (p0 - np.floor(p0)))
+    for threshold in (None, 0.2):
+        limit = default_lyapunov_threshold(300) if threshold is None else threshold
+        chaotic = np.flatnonzero(lyapunov(state, 300) > limit)
+        expected = group_moments(dp[chaotic], chaotic % 16, 16).tobytes()
+        assert spread_moments(state, 300, threshold).tobytes() == expected
+        with ThreadPoolExecutor(2) as pool:
+            assert spread_moments(state, 300, threshold, pool=pool).tobytes() == expected
