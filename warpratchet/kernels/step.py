@@ -32,7 +32,7 @@ Two bodies, one arithmetic:
 ``tests/test_kernels.py`` checks that both give bitwise the same states on the CPU.
 """
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import warp as wp
 
@@ -47,6 +47,7 @@ __all__ = [
     "Body",
     "CPU",
     "PORTABLE",
+    "load_lanes",
     "load_lane_vector",
     "store_lane_vector",
     "VECTOR_TYPES",
@@ -116,17 +117,25 @@ class Coefficients:
 
 # -- lane layout and loads ----------------------------------------------------------------------
 @wp.func
-def load_lane_vector(a: wp.array(dtype=wp.float64), first: int, spacing: int, n: int):
-    """Lanes ``first + k*spacing`` of ``a``; lanes past ``n`` repeat point ``n - 1``."""
-    v = LaneVector()
+def load_lanes(a: wp.array(dtype=Any), lanes: Any, first: int, spacing: int, n: int):
+    """Lanes ``first + k*spacing`` of ``a`` in a copy of ``lanes``, a lane vector of ``a``'s dtype
+    (:data:`LaneVector` for the float64 state, an int64 one for a variant's counters); lanes past
+    ``n`` repeat point ``n - 1``."""
+    v = lanes
     for k in range(wp.static(INTERLEAVE)):
         v[k] = a[wp.min(first + k * spacing, n - 1)]
     return v
 
 
 @wp.func
-def store_lane_vector(a: wp.array(dtype=wp.float64), v: LaneVector, first: int, spacing: int, n: int):
-    """Store the lanes that are real points."""
+def load_lane_vector(a: wp.array(dtype=wp.float64), first: int, spacing: int, n: int):
+    """The float64 lanes ``first + k*spacing`` of ``a`` (:func:`load_lanes`)."""
+    return load_lanes(a, LaneVector(), first, spacing, n)
+
+
+@wp.func
+def store_lane_vector(a: wp.array(dtype=Any), v: Any, first: int, spacing: int, n: int):
+    """Store the lanes that are real points (any dtype: ``v`` is a lane vector of ``a``'s)."""
     for k in range(wp.static(INTERLEAVE)):
         i = first + k * spacing
         if i < n:

@@ -29,7 +29,7 @@ CUDA threads); integer sums do not depend on the order.
 import warp as wp
 
 from .advance import Variant, advance_kernel
-from .step import INTERLEAVE, Lanes
+from .step import INTERLEAVE, Lanes, load_lanes, store_lane_vector
 from .transport_cpu import BINS, DECODE_CPU, FINISH_CPU, STEP_CPU
 
 __all__ = ["BINS", "HISTOGRAMS", "CARRY_FIELDS", "advance_map_transport", "TRANSPORT"]
@@ -79,27 +79,11 @@ class _Accumulators:
 
 
 @wp.func
-def _load_ints(a: wp.array(dtype=wp.int64), first: int, spacing: int, n: int):
-    v = _LaneInts()
-    for k in range(wp.static(INTERLEAVE)):
-        v[k] = a[wp.min(first + k * spacing, n - 1)]
-    return v
-
-
-@wp.func
-def _store_ints(a: wp.array(dtype=wp.int64), v: _LaneInts, first: int, spacing: int, n: int):
-    for k in range(wp.static(INTERLEAVE)):
-        i = first + k * spacing
-        if i < n:
-            a[i] = v[k]
-
-
-@wp.func
 def _load(arrays: _Arrays, first: int, spacing: int, n: int):
     acc = _Accumulators()
-    acc.last_visit = _load_ints(arrays.last_visit, first, spacing, n)
-    acc.flight_gain = _load_ints(arrays.flight_gain, first, spacing, n)
-    acc.flight_start = _load_ints(arrays.flight_start, first, spacing, n)
+    acc.last_visit = load_lanes(arrays.last_visit, _LaneInts(), first, spacing, n)
+    acc.flight_gain = load_lanes(arrays.flight_gain, _LaneInts(), first, spacing, n)
+    acc.flight_start = load_lanes(arrays.flight_start, _LaneInts(), first, spacing, n)
     lanes = int(0)  # noqa: UP018 - Warp: a variable changed in a loop needs a constructor
     for k in range(wp.static(INTERLEAVE)):
         if first + k * spacing < n:
@@ -110,9 +94,9 @@ def _load(arrays: _Arrays, first: int, spacing: int, n: int):
 
 @wp.func
 def _store(arrays: _Arrays, acc: _Accumulators, first: int, spacing: int, n: int):
-    _store_ints(arrays.last_visit, acc.last_visit, first, spacing, n)
-    _store_ints(arrays.flight_gain, acc.flight_gain, first, spacing, n)
-    _store_ints(arrays.flight_start, acc.flight_start, first, spacing, n)
+    store_lane_vector(arrays.last_visit, acc.last_visit, first, spacing, n)
+    store_lane_vector(arrays.flight_gain, acc.flight_gain, first, spacing, n)
+    store_lane_vector(arrays.flight_start, acc.flight_start, first, spacing, n)
     for b in range(3 * BINS):
         if acc.counts[b] != wp.int64(0):
             wp.atomic_add(arrays.counts, b, acc.counts[b])
