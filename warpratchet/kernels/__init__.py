@@ -56,6 +56,10 @@ the same, out of line (``noinline``)                                    0.71-0.7
 the same, subnormal and special arguments on a branch                  0.82 (no gain)
 =====================================================================  ==============
 
+Measured again later the same way (and in ``benchmarks/throughput.py`` with every row on its own
+cores), the chosen build gave 0.73-0.81 of ``advance_map``: the selection's 0.81-0.83 was a good
+day on a shared machine, and the 0.8 that issue 12 asks for is not reliably met.
+
 The renormalisation's ``log`` (once per ~660 steps for a chaotic point) stays the C library's,
 lane by lane, for the lanes that need it: ``fdlog`` there made ``advance_map`` slower (1,090-1,190
 against 1,220-1,235 M point-steps per CPU-second: a check that renormalises one lane would take
