@@ -11,6 +11,7 @@ import contextlib
 import dataclasses
 import json
 import os
+import time
 from typing import Any
 
 import h5py
@@ -79,14 +80,29 @@ def open_for_reading(
     return f
 
 
+#: Looks at the rows' extent when it lags the counter (a live writer), ~2 ms apart.
+_EXTENT_ATTEMPTS = 25
+
+
+def _refresh(ds: h5py.Dataset) -> None:
+    with contextlib.suppress(Exception):  # SWMR-read only: follow a live writer
+        ds.refresh()
+
+
 def valid_rows(f: h5py.File, path: str) -> list[dict[str, Any]]:
     """The complete records of an open sweep file; a damaged one is an error, never a number."""
     try:
         valid_ds, rows_ds = f["rows_valid"], f["rows"]
-        for ds in (valid_ds, rows_ds):
-            with contextlib.suppress(Exception):  # SWMR-read only: follow a live writer
-                ds.refresh()
+        _refresh(valid_ds)
         valid = int(valid_ds[()]) if valid_ds.shape == () else int(valid_ds[0])
+        # The writer extends and fills the rows before it bumps the counter, but a SWMR reader
+        # that has just seen the new counter may see the rows' new extent a moment later (the
+        # rows' object header is another piece of metadata): look again before calling it damage.
+        for _attempt in range(_EXTENT_ATTEMPTS):
+            _refresh(rows_ds)
+            if valid <= rows_ds.shape[0]:
+                break
+            time.sleep(0.002)
         if not 0 <= valid <= rows_ds.shape[0]:
             raise FileFormatError(f"{path}: rows_valid = {valid} but the file has {rows_ds.shape[0]} rows")
         return [from_record(record) for record in rows_ds[:valid]]
