@@ -21,6 +21,7 @@ import pytest
 from support import MAP_FLAGS, same_state
 
 from warpratchet import Ensemble, MapParams, Observer
+from warpratchet.history import block_steps, history_steps
 
 PARAMS = MapParams(3.0, 0.1, 0.01)
 
@@ -111,17 +112,25 @@ def test_sigint_during_cli_run_is_one_line_and_exit_130(tmp_path, archived):
     [line] = stderr.strip().splitlines()
     assert line.startswith("warpratchet: interrupted at step ") and "of 100000000" in line
     step = int(line.split("at step ")[1].split()[0])
-    # Chunks end at multiples of --chunk-steps, and at a recording's (log-spaced) frames.
-    assert step > 0 and (step % 1000 == 0 or not archived)
+    # Chunks end at multiples of --chunk-steps, at the history's rows and block ends (log-spaced
+    # and target j / 64), and at a recording's (log-spaced) frames.
+    history_stops = {*history_steps(0, 100_000_000), *block_steps(0, 100_000_000)}
+    assert step > 0 and (step % 1000 == 0 or step in history_stops or not archived)
     if archived:
-        # Stopped between chunks, the run is checkpointed where it stopped: nothing is lost.
-        assert f"{path} keeps the checkpoint at step {step}: run the same command again" in line
+        # Stopped at a chunk end (a series row), the run is checkpointed where it stopped: nothing
+        # is lost. Stopped at a history stop between two rows, the archive keeps the checkpoint
+        # of its last row (a checkpoint is complete only with the rows and history records up to
+        # it), and the message names that step.
+        saved = step if step % 1000 == 0 else None
+        kept = int(line.split("keeps the checkpoint at step ")[1].split(":")[0])
+        assert kept == saved if saved is not None else (kept < step and kept % 1000 == 0)
+        assert f"{path} keeps the checkpoint at step {kept}: run the same command again" in line
         from warpratchet import open_archive
 
         with open_archive(path) as arc:  # closed cleanly: readable, its checkpoint exact
             state, checkpoint = arc.checkpoint()
             rows = arc.series["step"]
-        assert rows[-1] == step and checkpoint == step
+        assert checkpoint == kept and rows[-1] == step - step % 1000
         fresh = Ensemble.sample(PARAMS, 40_000, "strip", seed=0).run(checkpoint)
         assert same_state(state, fresh.state())
     else:
