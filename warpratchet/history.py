@@ -59,6 +59,7 @@ from .runloop import Observer
 from .verdict import Assessment, assess
 
 __all__ = [
+    "log_steps",
     "HISTORY_FIELDS",
     "INT_FIELDS",
     "BLOCK_FIELDS",
@@ -99,24 +100,30 @@ _BLOCK_SALT = 0xB10C
 _CHUNK = 1 << 20
 
 
-def history_steps(first: int, target: int, per_decade: int = PER_DECADE) -> list[int]:
-    """The global steps ``n`` with ``first < n <= target`` at which a history row is recorded.
-
-    The steps ``round(10^(k/per_decade))`` for ``k = 0, 1, ...`` (duplicates dropped), plus
-    ``target // 2`` (the drift of A between n/2 and n is read there exactly) and ``target``.
-    """
+def log_steps(first: int, target: int, per_decade: int = PER_DECADE) -> list[int]:
+    """The steps ``round(10^(k/per_decade))``, ``k = 0, 1, ...`` (duplicates dropped), with
+    ``first < n <= target``: the log-spaced grid of the history's rows (and of transport's spread)."""
     first = check_count("first", first, 0)
     target = check_count("target", target, 0)
     per_decade = check_count("per_decade", per_decade, 1, 1000)
-    steps = {target, target // 2}
-    k = 0
-    while True:
-        n = round(10.0 ** (k / per_decade))
-        if n > target:
-            break
-        steps.add(n)
+    steps, k = set(), 0
+    while (n := round(10.0 ** (k / per_decade))) <= target:
+        if n > first:
+            steps.add(n)
         k += 1
-    return sorted(n for n in steps if first < n <= target)
+    return sorted(steps)
+
+
+def history_steps(first: int, target: int, per_decade: int = PER_DECADE) -> list[int]:
+    """The global steps ``n`` with ``first < n <= target`` at which a history row is recorded.
+
+    :func:`log_steps`, plus ``target // 2`` (the drift of A between n/2 and n is read there
+    exactly) and ``target``.
+    """
+    first = check_count("first", first, 0)
+    target = check_count("target", target, 0)
+    ends = {n for n in (target, target // 2) if n > first}
+    return sorted(set(log_steps(first, target, per_decade)) | ends)
 
 
 def block_steps(first: int, target: int, blocks: int = BLOCKS) -> list[int]:

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import check_count
+from ..history import log_steps
 from ..observables import default_lyapunov_threshold, lyapunov
 from ..runloop import Observer
 from .fits import GROUPS, group_moments
@@ -34,15 +34,9 @@ _FIELDS = ("winding", "q", "p0", "dx", "dp", "log_stretch")
 
 
 def spread_steps(first: int, target: int, per_decade: int = SPREAD_PER_DECADE) -> list[int]:
-    """The steps ``round(10^(k/per_decade))``, duplicates dropped, with ``first < n <= target``."""
-    first = check_count("first", first, 0)
-    target = check_count("target", target, 0)
-    steps, k = set(), 0
-    while (n := round(10.0 ** (k / per_decade))) <= target:
-        if n > first:
-            steps.add(n)
-        k += 1
-    return sorted(steps)
+    """The steps ``round(10^(k/per_decade))``, duplicates dropped, with ``first < n <= target``
+    (the history's log-spaced grid, :func:`warpratchet.history.log_steps`)."""
+    return log_steps(first, target, per_decade)
 
 
 def _chaotic_gains(
