@@ -6,6 +6,7 @@ verify`` for archives and sweep files (:func:`read_everything`).
 
 from __future__ import annotations
 
+import contextlib
 import io
 import os
 import time
@@ -14,13 +15,20 @@ import h5py
 import numpy as np
 from h5py import h5d, h5s, h5z
 
-__all__ = ["chunk_past_end", "read_rows", "read_everything", "first_line"]
+__all__ = ["chunk_past_end", "read_rows", "read_everything", "first_line", "refresh"]
 
 
 def first_line(exc: BaseException) -> str:
     """The first line of an error's text (HDF5's run over several)."""
     text = str(exc).strip() or type(exc).__name__
     return text.splitlines()[0]
+
+
+def refresh(ds: h5py.Dataset) -> h5py.Dataset:
+    """``ds`` with the metadata a live SWMR writer has flushed since (a no-op outside SWMR reads)."""
+    with contextlib.suppress(Exception):  # only meaningful (and only allowed) in SWMR mode
+        ds.refresh()
+    return ds
 
 
 def chunk_past_end(path: str, ds: h5py.Dataset, rows: int | None = None) -> str | None:

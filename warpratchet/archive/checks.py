@@ -11,7 +11,7 @@ from collections.abc import Iterator
 import h5py
 import numpy as np
 
-from .._h5verify import chunk_past_end, first_line
+from .._h5verify import chunk_past_end, first_line, refresh
 from .names import ArchiveError
 
 __all__ = ["reading", "refresh", "check_extent", "nonfinite", "listed"]
@@ -28,12 +28,6 @@ def reading(path: str, what: str) -> Iterator[None]:
         raise ArchiveError(
             f"{path}: cannot read {what} ({first_line(exc)}); the archive is truncated or corrupted"
         ) from None
-
-
-def refresh(ds: h5py.Dataset) -> h5py.Dataset:
-    with contextlib.suppress(Exception):  # only meaningful (and only allowed) in SWMR mode
-        ds.refresh()
-    return ds
 
 
 def check_extent(path: str, ds: h5py.Dataset, rows: int | None = None) -> None:

@@ -7,7 +7,6 @@ record whose checksum fails is an error, never a number.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import json
 import os
@@ -18,7 +17,7 @@ import h5py
 import numpy as np
 
 from .._files import open_h5
-from .._h5verify import first_line
+from .._h5verify import first_line, refresh
 from ..errors import FileFormatError
 from ..params import MapParams
 from ..spec import SweepSpec, attr_value
@@ -84,22 +83,17 @@ def open_for_reading(
 _EXTENT_ATTEMPTS = 25
 
 
-def _refresh(ds: h5py.Dataset) -> None:
-    with contextlib.suppress(Exception):  # SWMR-read only: follow a live writer
-        ds.refresh()
-
-
 def valid_rows(f: h5py.File, path: str) -> list[dict[str, Any]]:
     """The complete records of an open sweep file; a damaged one is an error, never a number."""
     try:
         valid_ds, rows_ds = f["rows_valid"], f["rows"]
-        _refresh(valid_ds)
+        refresh(valid_ds)
         valid = int(valid_ds[()]) if valid_ds.shape == () else int(valid_ds[0])
         # The writer extends and fills the rows before it bumps the counter, but a SWMR reader
         # that has just seen the new counter may see the rows' new extent a moment later (the
         # rows' object header is another piece of metadata): look again before calling it damage.
         for _attempt in range(_EXTENT_ATTEMPTS):
-            _refresh(rows_ds)
+            refresh(rows_ds)
             if valid <= rows_ds.shape[0]:
                 break
             time.sleep(0.002)
