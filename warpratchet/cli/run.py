@@ -42,6 +42,7 @@ def add(sub) -> None:
 def run_report(ensemble, seconds: float, steps_run: int, threshold: float | None) -> dict[str, Any]:
     """The JSON object of ``run`` and ``resume``: parameters, A, FTLE statistics, speed."""
     from .. import theory
+    from ..archive.transport import counts_transport
     from ..ensemble import STATE_FIELDS
     from ..observables import summarize
 
@@ -63,12 +64,8 @@ def run_report(ensemble, seconds: float, steps_run: int, threshold: float | None
         **summary,
         "seconds": seconds,
         "point_steps_per_second": ensemble.points * steps_run / seconds if seconds > 0 else None,
-        **({"transport": ensemble.report()} if _counts_transport(ensemble) else {}),
+        **({"transport": ensemble.report()} if counts_transport(ensemble) else {}),
     }
-
-
-def _counts_transport(ensemble) -> bool:
-    return callable(getattr(ensemble, "transport_state", None))
 
 
 def _number(value: float, spec: str) -> str:
