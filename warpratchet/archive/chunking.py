@@ -85,9 +85,11 @@ def sink_schedule(
 ) -> tuple[int, int]:
     """:func:`schedule` for an archive of ``ensemble``: bad values refused before any measuring,
     then the default chunk no shorter than :func:`sink_min_chunk_steps`."""
-    schedule(ensemble.points, chunk_steps, snapshot_every, checkpoint_every)  # bad values: no work
-    floor = sink_min_chunk_steps(ensemble) if chunk_steps is None else MIN_ARCHIVE_CHUNK_STEPS
-    return schedule(ensemble.points, chunk_steps, snapshot_every, checkpoint_every, min_chunk_steps=floor)
+    if chunk_steps is not None:
+        return schedule(ensemble.points, chunk_steps, snapshot_every, checkpoint_every)
+    schedule(ensemble.points, None, snapshot_every, checkpoint_every)  # bad values: no measuring
+    floor = sink_min_chunk_steps(ensemble)
+    return schedule(ensemble.points, None, snapshot_every, checkpoint_every, min_chunk_steps=floor)
 
 
 _MEASURED: dict[tuple, tuple[float, float]] = {}
