@@ -31,7 +31,6 @@ __all__ = [
     "Summary",
     "summarize",
     "SUMMARY_CHUNK",
-    "SUMMARY_DESCRIPTIONS",
 ]
 
 #: Fewest chaotic points for which A is reported as an estimate. The standard error is itself
@@ -205,16 +204,6 @@ class Summary:
             raise ImportError("Summary.to_pandas needs pandas: pip install pandas") from None
         row = self.as_dict()
         return pd.DataFrame([row]).set_index("step")
-
-
-#: ``(units, long_name)`` of the :class:`Summary` fields that an archive's ``/series`` and a sweep's
-#: rows both store under these names, worded once (``units`` and ``long_name`` attributes).
-SUMMARY_DESCRIPTIONS: dict[str, tuple[str, str]] = {
-    "lyapunov_std": ("1/iteration", "standard deviation of the FTLE of chaotic points"),
-    "lyapunov_min": ("1/iteration", "smallest FTLE of a chaotic point"),
-    "chaotic_fraction": ("1", "fraction of points with FTLE above threshold"),
-    "chaotic_points": ("1", "number of points with FTLE above threshold"),
-}
 
 
 def mean_stderr(values: np.ndarray) -> tuple[float, float]:

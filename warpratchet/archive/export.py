@@ -1,7 +1,7 @@
 """An archive as a ``pandas.DataFrame`` or an ``xarray.Dataset`` (the optional ``xarray`` extra).
 
 Units and descriptions come from the file's ``units``/``long_name`` attributes (format v2) or,
-for format v1 files that lack them, from :data:`~warpratchet.archive.names.DESCRIPTIONS`.
+for format v1 files that lack them, from :mod:`warpratchet.glossary`.
 The file itself also opens directly: ``xarray.open_dataset(path, group="series",
 engine="h5netcdf")`` (format v2).
 """

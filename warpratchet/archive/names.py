@@ -17,8 +17,8 @@ from version 1 (warpratchet 0.1.0, still read) in:
 
 from __future__ import annotations
 
+from .. import glossary
 from ..errors import FileFormatError, NonFiniteStateError  # NonFiniteStateError: re-exported
-from ..observables import SUMMARY_DESCRIPTIONS
 
 __all__ = [
     "FORMAT",
@@ -31,7 +31,6 @@ __all__ = [
     "COUNTERS",
     "HISTORY_COUNTERS",
     "KNOWN_FEATURES",
-    "DESCRIPTIONS",
     "describe",
     "ArchiveError",
     "ArchiveWarning",
@@ -90,61 +89,15 @@ KNOWN_FEATURES = {
     "transport": "/transport: momentum histograms (issue 16)",
 }
 
-_STATE = {
-    "x": ("1", "position x in [0, 1)"),
-    "q": ("1", "fractional momentum p mod 1, in [0, 1)"),
-    "winding": ("1", "whole units of momentum gained since step 0"),
-    "p0": ("1", "initial momentum; p_n = floor(p0) + winding + q"),
-    "dx": ("1", "tangent vector, x component"),
-    "dp": ("1", "tangent vector, p component"),
-    "log_stretch": ("1", "natural log of the tangent norm removed by renormalisation"),
-}
-#: ``(units, long_name)`` of every dataset, by its name inside its group (``"series/A"``) or, for
-#: the per-point state of ``/initial`` and the checkpoint slots, by field name. Momentum and
-#: position are in units of the map's period (dimensionless, "1"); rates are per iteration.
-DESCRIPTIONS: dict[str, tuple[str, str]] = {
-    **_STATE,
-    "series/step": ("iteration", "step at the end of the chunk"),
-    "series/A": ("1/iteration", "mean acceleration A_n of Eq. (An) over chaotic points"),
-    "series/A_stderr": ("1/iteration", "standard error of A: std / sqrt(chaotic points)"),
-    "series/lyapunov": ("1/iteration", "mean finite-time Lyapunov exponent of chaotic points"),
-    **{f"series/{name}": description for name, description in SUMMARY_DESCRIPTIONS.items()},
-    "series/threshold": ("1/iteration", "FTLE threshold used for the row"),
-    "series/wall_time": ("s", "kernel seconds of the chunk"),
-    "series/unix_time": ("seconds since 1970-01-01 00:00:00 UTC", "when the row was written"),
-    "snapshots/step": ("iteration", "step of the snapshot"),
-    "snapshots/indices": ("1", "sorted indices of the subsample's points in the ensemble"),
-    "snapshots/x": ("1", "position x in [0, 1)"),
-    "snapshots/p": ("1", "momentum p mod 1, in [0, 1)"),
-    "snapshots/ftle": ("1/iteration", "finite-time Lyapunov exponent of each point"),
-    "snapshots/A": ("1/iteration", "A_n of Eq. (An) of each point"),
-    "progress/series_rows": ("1", "valid rows of /series (raised after they are on disk)"),
-    "progress/snapshot_rows": ("1", "valid snapshots of /snapshots (raised after they are on disk)"),
-    "progress/target_step": ("iteration", "step the last run session aims at; -1 before the first"),
-    "progress/history_rows": ("1", "valid rows of /history (raised after they are on disk)"),
-    "progress/block_rows": ("1", "valid block records of /history (raised after they are on disk)"),
-    "history/step": ("iteration", "step n of the history row"),
-    "history/A": ("1/iteration", "mean acceleration A_n of Eq. (An) over chaotic points at n"),
-    "history/A_stderr": ("1/iteration", "standard error of A: std / sqrt(chaotic points)"),
-    "history/sigma": ("1/iteration", "mean finite-time Lyapunov exponent of chaotic points at n"),
-    "history/chaotic_fraction": ("1", "fraction of points chaotic at n"),
-    "history/chaotic_points": ("1", "number of points chaotic at n"),
-    "history/var_dp_all": ("1", "variance of p_n - p_0 over all points"),
-    "history/var_dp_chaotic": ("1", "variance of p_n - p_0 over the chaotic points"),
-    "history/block_step": ("iteration", "end of a time block, floor(target j / blocks)"),
-    "history/block_indices": ("1", "sorted indices of the block subsample's points in the ensemble"),
-    "history/block_gain": ("1", "p_n - p_0 of each subsample point at the block end"),
-    "history/block_ftle": ("1/iteration", "finite-time Lyapunov exponent of each subsample point"),
-    "checkpoint/current": ("1", "slot of the newest complete checkpoint: 0 = a, 1 = b, -1 none"),
-    "checkpoint/step": ("iteration", "step of the state in this slot; -1 while written or unused"),
-}
-
 
 def describe(group: str, name: str) -> tuple[str, str]:
-    """``(units, long_name)`` of dataset ``name`` of ``group`` (``"initial"``, ``"checkpoint/a"``, ...)."""
-    if group.startswith("checkpoint/") and name == "step":
-        return DESCRIPTIONS["checkpoint/step"]
-    return DESCRIPTIONS.get(f"{group}/{name}") or DESCRIPTIONS[name]
+    """``(units, long_name)`` of dataset ``name`` of ``group`` (``"initial"``, ``"checkpoint/a"``, ...).
+
+    Worded in :mod:`warpratchet.glossary`, with the sweep files' columns.
+    """
+    if group.startswith("checkpoint/"):
+        group = "checkpoint"  # both slots hold the same datasets
+    return glossary.describe(group, name)
 
 
 class ArchiveError(FileFormatError):

@@ -23,6 +23,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from ..glossary import describe
 from ..transport.fits import GROUPS
 from ..transport.histograms import BINS, CARRY_FIELDS, HISTOGRAMS
 from .checks import reading
@@ -33,7 +34,6 @@ from .rows import Rows
 
 __all__ = [
     "FEATURE",
-    "DESCRIPTIONS",
     "create",
     "TransportRows",
     "TransportWriter",
@@ -46,22 +46,11 @@ __all__ = [
 
 #: The feature name in ``/@features``.
 FEATURE = "transport"
-#: ``(units, long_name)`` of the group's datasets (slot datasets by their own name).
-DESCRIPTIONS = {
-    "step": ("iteration", "step at the end of the chunk"),
-    "counts": ("1", f"completed runs per log2 bin of length, rows {', '.join(HISTOGRAMS)}"),
-    "rows": ("1", "valid rows of /transport (raised after they are on disk)"),
-    "last_visit": ("iteration", "global step of the point's last visit to B; -1 none yet"),
-    "flight_gain": ("1", "whole units gained per step by the run in progress; 0 none"),
-    "flight_start": ("iteration", "global step of the first step of the run in progress"),
-    "spread_steps": ("iteration", "steps of the spread rows (round(10^(k/8)))"),
-    "spread": ("1", "per group of points: count, mean, squared deviations of p_n - p_0 (chaotic)"),
-}
 
 
 def _dataset(group: h5py.Group, name: str, **kw: Any) -> h5py.Dataset:
     ds = group.create_dataset(name, fletcher32=True, **kw)
-    units, long_name = DESCRIPTIONS[name]
+    units, long_name = describe("transport", name)  # slot datasets by their own name
     _set_attrs(ds, {"units": units, "long_name": long_name})
     return ds
 

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..observables import SUMMARY_DESCRIPTIONS
+from ..glossary import describe
 
 __all__ = [
     "FORMAT",
@@ -78,31 +78,9 @@ ADDED_COLUMNS: dict[str, Any] = {
 TIMING_FIELDS: tuple[str, ...] = ("seconds",)
 
 #: ``(units, long_name)`` of each column, stored as the ``column_units`` and ``column_long_names``
-#: attributes of ``rows`` (a compound dataset has one ``units`` attribute, so it says where to look).
-ROW_DESCRIPTIONS: dict[str, tuple[str, str]] = {
-    "index": ("1", "position of the point in the sweep"),
-    "K": ("1", "kick strength K (Eq. cpem)"),
-    "b1": ("1", "left strip width b1 (Eq. fx)"),
-    "b2": ("1", "right strip width b2 (Eq. fx)"),
-    "domain": ("", "domain of Fig. 3: LR, L, R or none"),
-    "A_theory": ("1/iteration", "A of Eqs. (Aa)/(Ab) at K = 3; NaN elsewhere"),
-    "A": ("1/iteration", "mean A_n of Eq. (An) over chaotic points"),
-    "A_stderr": ("1/iteration", "standard error of A"),
-    "lyapunov": ("1/iteration", "mean FTLE of chaotic points"),
-    **SUMMARY_DESCRIPTIONS,
-    "points": ("1", "ensemble size run"),
-    "steps": ("iteration", "iterations run"),
-    "seed": ("1", "the point's own seed, point_seed(spec.seed, index)"),
-    "init": ("", "sampler of the initial ensemble"),
-    "threshold": ("1/iteration", "FTLE threshold used for the chaotic mask"),
-    "threshold_rule": ("", "rule of the default threshold: strict or positive"),
-    "A_stderr_robust": ("1/iteration", "robust standard error of A (batch means over time)"),
-    "drift": ("1/iteration", "A_n - A_n/2, the drift of A over the second half of the run"),
-    "drift_z": ("1", "the drift in units of its standard error"),
-    "verdict": ("", "converged, drifting (|drift_z| > 3), too short or undefined"),
-    "diffusion_exponent": ("1", "mu of the block-gain variance ~ T^mu (1 diffusive, 2 ballistic)"),
-    "seconds": ("s", "wall time of the ensemble run"),
-}
+#: attributes of ``rows`` (a compound dataset has one ``units`` attribute, so it says where to look);
+#: worded in :mod:`warpratchet.glossary`, as the archives' datasets of the same name.
+ROW_DESCRIPTIONS: dict[str, tuple[str, str]] = {name: describe("rows", name) for name in ROW_FIELDS}
 
 _STRING_FIELDS = tuple(name for name in ROW_FIELDS if ROW_DTYPE[name].kind == "S")
 _INT_FIELDS = tuple(name for name in ROW_FIELDS if ROW_DTYPE[name].kind == "i")
