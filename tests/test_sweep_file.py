@@ -44,6 +44,31 @@ def test_every_dataset_is_checksummed_and_described(finished):
         assert len(f["rows"].attrs["column_units"]) == len(f["rows"].dtype.names)
 
 
+def test_a_column_reads_as_the_archive_dataset_of_the_same_name(finished, tmp_path):
+    """One concept, one wording (glossary.py): A, A_stderr, lyapunov, ... of a sweep's rows and
+    of an archive's /series carry the same units and long_name in the files themselves."""
+    from warpratchet import Ensemble, MapParams
+    from warpratchet.spec import attr_value
+
+    archive = tmp_path / "run.h5"
+    Ensemble.sample(MapParams(K=3.0, b1=0.1, b2=0.01), 64, "strip", seed=1).run(100, archive=archive)
+    with h5py.File(finished[0], "r") as sweep, h5py.File(archive, "r") as arc:
+        rows = sweep["rows"]
+        columns = dict(
+            zip(
+                rows.dtype.names,
+                zip(rows.attrs["column_units"], rows.attrs["column_long_names"], strict=True),
+                strict=True,
+            )
+        )
+        shared = sorted(set(columns) & set(arc["series"]))
+        assert {"A", "A_stderr", "lyapunov", "chaotic_fraction"} <= set(shared)
+        for name in shared:
+            units, long_name = (value.decode() for value in columns[name])
+            stored = arc["series"][name].attrs
+            assert (units, long_name) == (attr_value(stored["units"]), attr_value(stored["long_name"])), name
+
+
 def test_flipped_bits_never_change_a_reported_number(finished, tmp_path):
     """Single-bit flips all over the file (the rows densely): an error, or the same rows."""
     path, rows = finished
