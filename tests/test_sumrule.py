@@ -12,7 +12,6 @@ import math
 
 import numpy as np
 import pytest
-from support import refused
 
 from warpratchet import MapParams, theory
 from warpratchet.cli import main
@@ -203,22 +202,6 @@ def test_cli_sumrule_json(capsys):
     assert all(key in out for key in keys)
     assert {"nu", "m", "w", "area", "area_stderr"} <= set(out["islands"][0])
     assert {(i["w"], i["m"]) for i in out["islands"]} <= {(-1, 1), (0, 1), (1, 1)}
-
-
-@pytest.mark.parametrize(
-    ("argv", "needle"),
-    [
-        (["--points", "10", "--grid", "4"], "not allowed with argument"),
-        (["--points", "10", "--steps", "100"], "steps = 100"),
-        (["--K", "5", "--points", "10"], "K = 5.0"),
-        (["--points", "10", "--classifier", "nope"], "invalid choice"),
-    ],
-)
-def test_cli_sumrule_bad_input(capsys, argv, needle):
-    base = {"--K": "3", "--b1": "0.1", "--b2": "0.01"}
-    for i in range(0, len(argv), 2):
-        base[argv[i]] = argv[i + 1]
-    assert needle in refused(capsys, ["sumrule", "--quiet", *[t for kv in base.items() for t in kv]])
 
 
 def test_classifier_benchmark_quick(capsys):

@@ -14,7 +14,6 @@ import textwrap
 import h5py
 import numpy as np
 import pytest
-from support import error_line
 
 from warpratchet import Ensemble, summarize, theory
 from warpratchet import sweep as sweep_module
@@ -283,34 +282,6 @@ def test_cli_json_rows_and_resume(tmp_path, capsys):
     assert err.count("\n") == 1 and "steps is 2000 in the file, 3000 requested" in err and "--force" in err
     assert main(changed + ["--force"]) == 0
     assert read_definition(out)[1].steps == 3000
-
-
-@pytest.mark.parametrize(
-    ("args", "message"),
-    [
-        (["--path", "maximal", "--b2", "0.01:0.1"], "--b2 '0.01:0.1' is not START:STOP:COUNT"),
-        (["--path", "maximal", "--b2", "0.01:0.1:0"], "COUNT = 0 is outside the allowed range"),
-        (["--path", "maximal", "--b2", "0.01:0.1:1"], "COUNT = 1 cannot include both ends"),
-        (["--path", "maximal", "--b2", "x:0.1:3"], "--b2 'x:0.1:3'"),
-        (["--path", "maximal", "--b2", "0.01:0.3:3"], "b2 = 0.3 is outside the maximal path's range"),
-        (["--path", "maximal"], "--path maximal needs --b2"),
-        (["--path", "maximal", "--b2", "0.1", "--b1", "0.2"], "--b1 is not used by --path maximal"),
-        (["--path", "line", "--b2", "0.01:0.1:3"], "--path line needs --a"),
-        (["--path", "k", "--Ks", "1:5:3", "--b1", "0.1", "--b2", "0.01"], "K = 5.0 is outside"),
-        (["--path", "k", "--Ks", "2:3:3", "--b1", "0.1", "--b2", "0.01:0.02:2"], "a single value"),
-        (["--grid", "b1=0.1:0.2:3"], "needs both b1=START:STOP:COUNT and b2="),
-        (["--grid", "b1=0.1:0.2:3,b3=0.1:0.2:3"], "--grid 'b1=0.1:0.2:3,b3=0.1:0.2:3' is not"),
-        (["--grid", "b1=0.1:0.2:3,b2=0.01:0.02:inf"], "--grid b2 '0.01:0.02:inf'"),
-        (["--grid", "b1=0.1:0.2:3,b2=0.01:0.02:3", "--domain", "LR,X"], "'X'"),
-        (["--grid", "b1=0.6:0.9:3,b2=0.5:0.9:3"], "has no point with b1 + b2 < 1"),
-        (["--path", "maximal", "--grid", "b1=0.1:0.2:3,b2=0.1:0.2:3"], "not allowed with argument"),
-    ],
-)
-def test_cli_bad_input_is_one_line_naming_the_value(args, message, capsys):
-    assert main(["sweep", *args, "--quiet"]) == 2
-    captured = capsys.readouterr()
-    assert captured.out == ""
-    assert message in error_line(captured.err), captured.err
 
 
 # -- files of release 0.1.0 ----------------------------------------------------------------------
