@@ -98,3 +98,19 @@ def test_the_command_starts_without_importing_warp():
     code = "import sys; from warpratchet.cli import main; main(['--version']); print('warp' in sys.modules)"
     done = __import__("subprocess").run([sys.executable, "-c", code], capture_output=True, text=True)
     assert done.stdout.splitlines()[-1] == "False", done.stderr
+
+
+def test_a_reader_that_leaves_early_is_not_an_error():
+    """``warpratchet orbits ... | head``: the pipe closes while the command still writes; it stops
+    quietly with the shell's status for SIGPIPE (141), no error line, no traceback."""
+    import subprocess
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "warpratchet.cli", "orbits", *MAP_FLAGS, "--period", "6", "--json"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    assert proc.stdout.read(10) == b'{"K": 3.0,'
+    proc.stdout.close()  # ~300 kB are still to come: the next writes meet a closed pipe
+    assert proc.wait(timeout=120) == 141
+    assert proc.stderr.read() == b""

@@ -19,6 +19,7 @@ with its examples in :data:`EXAMPLES`.
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 from collections.abc import Sequence
@@ -154,6 +155,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(exc.usage, file=sys.stderr)
         print(f"{exc.prog}: error: {exc}{exc.hint}", file=sys.stderr)
         return 2
+    except BrokenPipeError:
+        # The reader of stdout left (``warpratchet orbits ... | head``): not an error, and nothing
+        # more to say. Python's documented recipe: point stdout at devnull so the flush at exit
+        # does not fail again; the status is the shell's for a writer ended by SIGPIPE.
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141  # 128 + SIGPIPE (13)
     except (ValueError, OSError) as exc:
         print(f"warpratchet: error: {exc}", file=sys.stderr)
         return 2
