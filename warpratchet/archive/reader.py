@@ -17,6 +17,7 @@ import os
 import warnings
 from typing import Any
 
+import h5py
 import numpy as np
 
 from .._files import open_h5
@@ -71,6 +72,11 @@ class Archive:
         except BaseException:
             self._file.close()
             raise
+
+    @property
+    def h5(self) -> h5py.File:
+        """The open HDF5 file (read-only, SWMR), for what the properties do not read, e.g. ``resume``."""
+        return self._file
 
     def _read_metadata(self) -> None:
         f = self._file

@@ -111,7 +111,7 @@ def _readable_rows(
     ok = np.ones(n, dtype=bool)
     out = {}
     for name in names:
-        ds = arc._file[group][name]
+        ds = arc.h5[group][name]
         try:
             with reading(arc.path, f"/{group}/{name}"):
                 out[name] = read_rows(ds, n)
@@ -171,13 +171,13 @@ def salvage(path: str | os.PathLike, *, threads: int | None = None, device: str 
         ensemble = arc.restore(state, step, threads, device, transport)
         transport_rows = None
         if _transport.FEATURE in arc.features:
-            rows = _transport.read_rows(arc._file, path)
+            rows = _transport.read_rows(arc.h5, path)
             kept_rows = rows["step"] <= step
             transport_rows = {name: values[kept_rows] for name, values in rows.items()}
         series, ok = _readable_rows(arc, "series", SERIES_FIELDS, arc.rows, problems)
         keep = ok & (series["step"] <= step)
         with reading(path, "/snapshots/indices"):
-            indices = arc._file["snapshots"]["indices"][:]
+            indices = arc.h5["snapshots"]["indices"][:]
         snaps, snap_ok = _readable_rows(
             arc, "snapshots", ("step", *SNAPSHOT_FIELDS), arc.snapshot_count, problems
         )
@@ -216,16 +216,16 @@ def salvage(path: str | os.PathLike, *, threads: int | None = None, device: str 
 
 def _history(arc: Archive, step: int, problems: list[str]) -> History:
     """The ``/history`` records up to ``step`` (damaged ones left out, like series rows)."""
-    n_rows, n_blocks = history_counts(arc.path, arc._file)
+    n_rows, n_blocks = history_counts(arc.path, arc.h5)
     rows, ok = _readable_rows(arc, "history", HISTORY_FIELDS, n_rows, problems)
     keep = ok & (rows["step"] <= step)
     blocks, block_ok = _readable_rows(arc, "history", BLOCK_FIELDS, n_blocks, problems)
     kept = block_ok & (blocks["block_step"] <= step)
     with reading(arc.path, "/history/block_indices"):
-        indices = arc._file["history"]["block_indices"][:]
+        indices = arc.h5["history"]["block_indices"][:]
     return History.restore(
         {name: values[keep] for name, values in rows.items()},
         {name: values[kept] for name, values in blocks.items()},
         indices,
-        **history_settings(arc.path, arc._file, arc.settings),
+        **history_settings(arc.path, arc.h5, arc.settings),
     )
