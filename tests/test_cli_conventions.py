@@ -114,3 +114,10 @@ def test_a_reader_that_leaves_early_is_not_an_error():
     proc.stdout.close()  # ~300 kB are still to come: the next writes meet a closed pipe
     assert proc.wait(timeout=120) == 141
     assert proc.stderr.read() == b""
+
+
+def test_figures_help_has_examples_too(capsys):
+    """README: every ``warpratchet COMMAND --help`` describes its options with examples."""
+    assert main(["figures", "--help"]) == 0
+    out = capsys.readouterr().out
+    assert "examples:" in out and "warpratchet figures --all --out figures/" in out
