@@ -349,6 +349,17 @@ def test_truncated_file_is_a_clear_error(tmp_path, archived):
     assert Path(path).read_bytes() == data[: len(data) // 2]  # a failed resume touches nothing
 
 
+def test_a_file_that_is_not_hdf5_is_named_so_not_called_truncated(tmp_path):
+    path = tmp_path / "notes.h5"
+    path.write_text("not an archive\n")
+    with pytest.raises(ArchiveError, match="notes.h5 is not an HDF5 file") as exc:
+        open_archive(path)
+    assert "truncated" not in str(exc.value)
+    proc = cli("inspect", str(path))
+    assert_one_line_error(proc)
+    assert "not an HDF5 file" in proc.stderr
+
+
 def test_truncated_file_of_a_killed_writer_errors_or_recovers_truthfully(tmp_path, killed):
     """HDF5 skips its size check in SWMR mode: what is missing must still never pass unnoticed."""
     src, _, states = killed

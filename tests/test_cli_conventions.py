@@ -114,3 +114,19 @@ def test_a_reader_that_leaves_early_is_not_an_error():
     proc.stdout.close()  # ~300 kB are still to come: the next writes meet a closed pipe
     assert proc.wait(timeout=120) == 141
     assert proc.stderr.read() == b""
+
+
+def test_figures_help_has_examples_too(capsys):
+    """README: every ``warpratchet COMMAND --help`` describes its options with examples."""
+    assert main(["figures", "--help"]) == 0
+    out = capsys.readouterr().out
+    assert "examples:" in out and "warpratchet figures --all --out figures/" in out
+
+
+@pytest.mark.parametrize("name", ["run", "sweep"])
+def test_threshold_help_names_the_rule_that_sets_its_default(name, capsys):
+    """With --threshold-rule positive the default is (1 + ln n)/n, not the strict rule's 10 (1 + ln n)/n."""
+    assert main([name, "--help"]) == 0
+    out = " ".join(capsys.readouterr().out.split("options:")[1].split())
+    threshold = out[out.index("--threshold THRESHOLD") : out.index("--threshold-rule {")]
+    assert "--threshold-rule" in threshold and "10 (1 + ln n)/n)" not in threshold

@@ -46,3 +46,54 @@ def test_bad_periods_are_one_line_errors():
     for period in ("0", "-1", "x"):
         proc = cli("orbits", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--period", period)
         assert proc.returncode == 2 and "period" in proc.stderr and "Traceback" not in proc.stderr
+
+
+#: docs/orbits.md's table: tree nodes (exact, any machine) and wall seconds of periods 5-9.
+MEASURED = {
+    MapParams(3.0, 0.1, 0.01): {
+        5: (2607, 0.20),
+        6: (7854, 0.59),
+        7: (24630, 2.69),
+        8: (80056, 12.2),
+        9: (268360, 41.7),
+    },
+    MapParams(2.99, 0.25, 0.05): {
+        5: (2257, 0.12),
+        6: (6628, 0.81),
+        7: (20113, 2.05),
+        8: (63148, 7.75),
+        9: (204071, 33.8),
+    },
+}
+
+
+def test_the_node_count_of_longer_periods_is_extrapolated_from_the_probes():
+    """Periods 8 and 9 from the exact counts of 5-7, within 3% (a constant growth: ~10% low at 9)."""
+    from warpratchet.cli.orbits import PROBES, extrapolate_nodes
+
+    for params, table in MEASURED.items():
+        probes = [table[m][0] for m in PROBES]
+        for period in (8, 9):
+            nodes, _ = extrapolate_nodes(probes, period)
+            assert nodes == pytest.approx(table[period][0], rel=0.03), (params, period)
+
+
+def test_the_estimate_refuses_period_10_and_runs_period_9(monkeypatch):
+    """The guard's extrapolation on the probe costs measured for docs/orbits.md.
+
+    Period 10 took 77-138 s at these two points (over a minute: needs --long) and period 9 took
+    34-42 s (runs). The search's cost per node grows with the period (longer exact integers) and so
+    does its node growth per period: a constant growth and cost per node predicted 34-48 s for
+    period 10 and let it run.
+    """
+    import warpratchet.orbits
+    from warpratchet.cli.orbits import LONG_SECONDS, estimate_seconds
+
+    def probe(params, period):
+        nodes, seconds = MEASURED[params][period]
+        return type("Probe", (), {"nodes": nodes, "seconds": seconds})()
+
+    monkeypatch.setattr(warpratchet.orbits, "enumerate_orbits", probe)
+    for params in MEASURED:
+        assert estimate_seconds(params, 10)[0] > LONG_SECONDS, params
+        assert estimate_seconds(params, 9)[0] < LONG_SECONDS, params

@@ -158,6 +158,7 @@ def test_run_help_states_the_budget(capsys):
     out = " ".join(capsys.readouterr().out.split())
     assert "--rerun-max-mb MB size budget of the recording" in out and "(default 10)" in out
     assert "log-spaced" in out
+    assert "--rerun-every STEPS frames every STEPS steps" in out  # the README's name for its value
 
 
 def test_rerun_spawn_without_a_display_warns_and_the_run_goes_on(tmp_path, monkeypatch, capsys):

@@ -112,6 +112,9 @@ def test_the_rule_itself():
     ok, why = reliability(1000, math.nan, 0.0)  # NaN stderr is never reliable
     assert not ok
     assert not reliability(1000, 0.01, math.inf)[0]
+    # No finite bound (as many points near the threshold as chaotic ones): said in words, not "up to inf".
+    ok, why = reliability(1000, 0.01, math.inf)
+    assert "without bound" in why and "up to inf" not in why
     # The 10% precision of the standard error behind MIN_CHAOTIC_POINTS.
     assert 1 / math.sqrt(2 * (MIN_CHAOTIC_POINTS - 1)) <= 0.1 < 1 / math.sqrt(2 * (MIN_CHAOTIC_POINTS - 2))
 

@@ -204,6 +204,18 @@ def test_cli_sumrule_json(capsys):
     assert {(i["w"], i["m"]) for i in out["islands"]} <= {(-1, 1), (0, 1), (1, 1)}
 
 
+def test_cli_sumrule_text_at_k3_compares_with_eq_cs(capsys):
+    """README: at K = 3 the text prints the closed forms and the point-by-point comparison with Eq. (Cs)."""
+    argv = ["sumrule", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--points", "2000", "--steps", "14000"]
+    assert main([*argv, "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert main([*argv, "--quiet", "--json"]) == 0
+    check = json.loads(capsys.readouterr().out)["C_check"]
+    [line] = [line for line in text.splitlines() if "Eq. (Cs)" in line]
+    for key, share in check.items():
+        assert f"{key.replace('_', ' ')} {share:.2g}" in line
+
+
 def test_classifier_benchmark_quick(capsys):
     """benchmarks/classifiers.py runs and reports a consistent agreement curve (no timings checked)."""
     import importlib.util

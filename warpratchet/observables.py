@@ -151,6 +151,11 @@ def reliability(chaotic_points: int, A_stderr: float, classification_bound: floa
             f"only {chaotic_points} chaotic points (need {MIN_CHAOTIC_POINTS} for a standard error "
             "known to 10%); run longer or with more points"
         )
+    if classification_bound == math.inf:  # summarize: no more chaotic points than ambiguous ones
+        return False, (
+            "at least as many points lie near the chaos threshold as are counted chaotic: their "
+            f"classification could move A without bound, beyond its standard error {A_stderr:.2g}; run longer"
+        )
     if not classification_bound <= A_stderr:  # also NaN
         return False, (
             f"the points near the chaos threshold could move A by up to {classification_bound:.2g}, "

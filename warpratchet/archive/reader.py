@@ -63,6 +63,8 @@ class Archive:
         except OSError as exc:
             if "unable to lock file" in str(exc):
                 raise ArchiveError(f"{self.path} is locked by another process") from None
+            if not h5py.is_hdf5(self.path):  # no HDF5 signature anywhere: not a damaged archive either
+                raise ArchiveError(f"{self.path} is not an HDF5 file (not a warpratchet archive)") from None
             raise ArchiveError(
                 f"{self.path}: not a readable HDF5 archive ({first_line(exc)}); "
                 "the file is truncated or corrupted"

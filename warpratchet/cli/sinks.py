@@ -31,9 +31,17 @@ def _first_given(flags: list[tuple[str, Any]], needs: str) -> None:
 
 
 # -- archives -----------------------------------------------------------------------------------
-def _count_flag(p: argparse.ArgumentParser, flag: str, low: int, default: int | None, help: str) -> None:
+def _count_flag(
+    p: argparse.ArgumentParser,
+    flag: str,
+    low: int,
+    default: int | None,
+    help: str,
+    metavar: str | None = None,
+) -> None:
     """A count flag whose errors name it as a setting (``--snapshot-every`` -> ``snapshot_every``)."""
-    p.add_argument(flag, type=count_type(flag[2:].replace("-", "_"), low), default=default, help=help)
+    kind = count_type(flag[2:].replace("-", "_"), low)
+    p.add_argument(flag, type=kind, default=default, help=help, metavar=metavar)
 
 
 def add_archive_flags(p: argparse.ArgumentParser) -> None:
@@ -143,7 +151,7 @@ def add_rerun_flags(p: argparse.ArgumentParser) -> None:
         "a warning, and the run goes on)",
     )
     _count_flag(p, "--rerun-points", 1, None, "points drawn per frame, a fixed subsample (default 20000)")
-    _count_flag(p, "--rerun-every", 1, None, "frames every STEPS steps instead of log-spaced frames")
+    _count_flag(p, "--rerun-every", 1, None, "frames every STEPS steps instead of log-spaced frames", "STEPS")
     p.add_argument(
         "--rerun-max-mb",
         type=_positive_megabytes,

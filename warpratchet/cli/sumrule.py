@@ -76,6 +76,9 @@ def _print_census(result, out: dict) -> None:
                 f"{k} = {'n/a' if t[k] is None else f'{t[k]:.6g}'}" for k in ("S_C", "S_L", "S_R", "A")
             )
         )
+    if result.C_check is not None:  # shares of the points, against C = B u MB u M^2 B
+        shares = ", ".join(f"{key.replace('_', ' ')} {share:.2g}" for key, share in result.C_check.items())
+        print(f"  vs Eq. (Cs), shares of the points: {shares}")
     print(f"  {result.seconds:.1f} s")
 
 
