@@ -146,7 +146,7 @@ _SETTINGS: dict[str, tuple[Any, Setting]] = {
         None,
         Setting(
             "indicator value above which a point counts as chaotic, >= 0 "
-            "(default: the FTLE threshold of --threshold-rule)",
+            "(default: the indicator's own; for the FTLE, that of --threshold-rule)",
             float,
             _threshold,
             optional=True,
