@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import re
+from pathlib import Path
 
 import pytest
 from support import assert_one_line_error, cli
@@ -48,23 +50,30 @@ def test_bad_periods_are_one_line_errors():
         assert proc.returncode == 2 and "period" in proc.stderr and "Traceback" not in proc.stderr
 
 
-#: docs/orbits.md's table: tree nodes (exact, any machine) and wall seconds of periods 5-9.
-MEASURED = {
-    MapParams(3.0, 0.1, 0.01): {
-        5: (2607, 0.20),
-        6: (7854, 0.59),
-        7: (24630, 2.69),
-        8: (80056, 12.2),
-        9: (268360, 41.7),
-    },
-    MapParams(2.99, 0.25, 0.05): {
-        5: (2257, 0.12),
-        6: (6628, 0.81),
-        7: (20113, 2.05),
-        8: (63148, 7.75),
-        9: (204071, 33.8),
-    },
-}
+def _cost_tables() -> dict[MapParams, dict[int, tuple[int, float]]]:
+    """docs/orbits.md's "Cost" tables, read from the page: ``{params: {m: (tree nodes, wall s)}}``.
+
+    Tree nodes are exact on any machine; the seconds are the page's measurement.
+    """
+    text = (Path(__file__).resolve().parents[1] / "docs" / "orbits.md").read_text()
+    tables = {}
+    for K, b1, b2, rows in re.findall(
+        r"^K = ([\d.]+), b1 = ([\d.]+), b2 = ([\d.]+):\n\n((?:\|.*\n)+)", text, re.M
+    ):
+        cells = [[c.strip() for c in row.strip("|").split("|")] for row in rows.splitlines()[2:]]
+        tables[MapParams(float(K), float(b1), float(b2))] = {
+            int(c[0]): (int(c[3]), float(c[1])) for c in cells
+        }
+    return tables
+
+
+MEASURED = _cost_tables()
+
+
+def test_the_cost_tables_of_the_docs_are_read():
+    assert set(MEASURED) == {MapParams(3.0, 0.1, 0.01), MapParams(2.99, 0.25, 0.05)}
+    assert MEASURED[MapParams(3.0, 0.1, 0.01)][9] == (268360, 41.7)
+    assert all(set(range(1, 10)) <= set(table) for table in MEASURED.values())
 
 
 def test_the_node_count_of_longer_periods_is_extrapolated_from_the_probes():
