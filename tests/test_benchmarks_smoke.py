@@ -1,4 +1,5 @@
-"""Smoke test of ``benchmarks/throughput.py`` (issue 2, item 7; issue 12, item 4).
+"""Smoke tests of ``benchmarks/throughput.py`` (issue 2, item 7; issue 12, item 4) and of
+``benchmarks/indicators_overhead.py`` (issue 12: the indicators kernel against ``advance_map``).
 
 Runs ``throughput.py --quick --json`` once in a subprocess (20 000 points x 1000 steps; about
 5-10 s with the Numba JIT and the gcc build) and checks the JSON structure, the ratios, the
@@ -17,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from support import quick_benchmark
 
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "throughput.py"
 QUICK_POINTS, QUICK_STEPS = 20_000, 1000
@@ -155,3 +157,16 @@ def test_bad_input_is_one_line_and_exit_2(args: tuple[str, ...], needle: str) ->
     assert done.stdout == ""
     lines = done.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], done.stderr
+
+
+def test_indicators_overhead_benchmark_runs_and_the_orbit_is_advance_maps():
+    """Smoke test of ``benchmarks/indicators_overhead.py --quick`` (structure; no timing assertions)."""
+    report = quick_benchmark("indicators_overhead.py")
+    assert report["quick"] and report["target"] == 0.8
+    assert [row["threads"] for row in report["results"]][0] == 1
+    for row in report["results"]:
+        assert row["bitwise_same_orbit"]
+        for key in ("ratio_per_wall_second", "ratio_per_cpu_second"):
+            spread = row[key]
+            assert 0 < spread["min"] <= spread["median"] <= spread["max"]
+        assert row["ratio_of_best"] > 0 and row["map_point_steps_per_second"] > 0

@@ -117,6 +117,11 @@ wp.set_module_options(CPU_MODULE_OPTIONS, "test_logarithm.cpu")
 wp.set_module_options(MODULE_OPTIONS, "test_logarithm.portable")
 _LANES = wp.kernel(_log_lanes, module="test_logarithm.cpu")
 _POINTS = wp.kernel(_log_points, module="test_logarithm.portable")
+# The CPU body's general form, as a CPU without AVX-512 compiles it (this machine may have it).
+_NO_AVX512_OPTIONS = {**CPU_MODULE_OPTIONS}
+_NO_AVX512_OPTIONS["cpu_compiler_flags"] += " -target-feature -avx512f"
+wp.set_module_options(_NO_AVX512_OPTIONS, "test_logarithm.cpu_no_avx512")
+_LANES_NO_AVX512 = wp.kernel(_log_lanes, module="test_logarithm.cpu_no_avx512")
 
 
 @pytest.mark.parametrize(("body", "device"), BODIES)
@@ -129,6 +134,36 @@ def test_kernel_fdlog_equals_numpy_bit_for_bit(body, device):
         wp.launch(_LANES, dim=kernels.launch_dim(x.size), inputs=[source, out], device=device)
     else:
         wp.launch(_POINTS, dim=x.size, inputs=[source, out], device=device)
+    got, expected = out.numpy(), reference.fdlog(x)
+    mismatched = np.flatnonzero(got.view(np.int64) != expected.view(np.int64))
+    assert mismatched.size == 0, f"{mismatched.size} differ, first at x = {x[mismatched[0]]!r}"
+
+
+def _with_a_special_lane_per_thread(x: np.ndarray) -> np.ndarray:
+    """``x`` with a NaN, 0 or inf before every INTERLEAVE - 1 of its values: each Warp thread's
+    lanes then hold a special value, so the CPU body takes its general path for all of them."""
+    groups = -(-x.size // (INTERLEAVE - 1))
+    padded = np.concatenate([x, np.ones(groups * (INTERLEAVE - 1) - x.size)]).reshape(groups, -1)
+    specials = np.resize(np.array([np.nan, 0.0, np.inf, -1.0]), (groups, 1))
+    return np.concatenate([specials, padded], axis=1).ravel()
+
+
+@pytest.mark.parametrize(
+    ("kernel", "special_lanes"),
+    [
+        pytest.param(_LANES, True, id="general-form"),
+        pytest.param(_LANES_NO_AVX512, False, id="without-avx512"),
+    ],
+)
+def test_cpu_fdlog_general_form_equals_numpy_bit_for_bit(kernel, special_lanes):
+    """The CPU body computes lanes that are all positive and finite by a shorter path (AVX-512);
+    its general form (a call with a special lane, or a CPU without AVX-512) gives the same bits."""
+    x = np.concatenate([_sample(100_000, seed=2), SPECIAL])
+    if special_lanes:
+        x = _with_a_special_lane_per_thread(x)
+    source = wp.array(x, dtype=wp.float64, device="cpu")
+    out = wp.zeros_like(source)
+    wp.launch(kernel, dim=kernels.launch_dim(x.size), inputs=[source, out], device="cpu")
     got, expected = out.numpy(), reference.fdlog(x)
     mismatched = np.flatnonzero(got.view(np.int64) != expected.view(np.int64))
     assert mismatched.size == 0, f"{mismatched.size} differ, first at x = {x[mismatched[0]]!r}"

@@ -51,14 +51,44 @@ the indicators' logarithm                                              of advanc
 =====================================================================  ==============
 before: the C library's ``log``, lane by lane                          0.64-0.69
 ``fdlog``, all 32 lanes at once (36)                                   0.78
-**``fdlog``, 8 lanes at a time in a rolled loop** (21)                 **0.81-0.83**
+``fdlog``, 8 lanes at a time in a rolled loop (21)                     0.81-0.83
 the same, out of line (``noinline``)                                    0.71-0.73
 the same, subnormal and special arguments on a branch                  0.82 (no gain)
 =====================================================================  ==============
 
 Measured again later the same way (and in ``benchmarks/throughput.py`` with every row on its own
-cores), the chosen build gave 0.73-0.81 of ``advance_map``: the selection's 0.81-0.83 was a good
-day on a shared machine, and the 0.8 that issue 12 asks for is not reliably met.
+cores), that build gave 0.73-0.81 of ``advance_map``, not reliably the 0.8 issue 12 asks for. Where
+the rest went, measured per CPU-second of one thread on 2^18 points of the same state (512-step
+launches of each kernel alternately, medians of 25-41 rounds; experiments, not kept): the check with
+``fdlog`` stubbed out (its argument passed through) ran at 1.00-1.01 of ``advance_map``, with the
+division ``2 lsum / j`` or ``fdlog``'s ``f / (2 + f)`` made a multiplication within +-0.04 (the
+noise; +0.01-0.02 in the steadiest run), with two independent ``fdlog`` calls at 0.73 (the second
+cost as much as the first). So the check's sums and divisions hide in the step loop's slack, and the
+whole cost is ``fdlog``'s arithmetic: its throughput, not its dependency chain. At ~3.2 GHz, 8 steps
+of 32 lanes take ~670 cycles (104 ``zmm`` operations per step) and ``fdlog`` of 32 lanes took ~175
+more, ~100 now. What changed it (same measure; the short path finds ``k`` and ``m`` with
+``vgetexppd`` and ``vgetmantpd`` and has no special-value selects, :mod:`.logarithm`):
+
+=====================================================================  ==============
+``fdlog`` on the CPU body                                              of advance_map
+=====================================================================  ==============
+8 lanes at a time, general form (~50 vector operations per 8 lanes)   0.75-0.84
+short path if all lanes are positive and finite (~34 operations)      0.76-0.85
+**the same, 16 lanes at a time** (two 512-bit registers, 17)           **0.85-0.88**
+the same, 32 lanes at once                                             0.85-0.86
+the same, ``2 + f`` as ``m + 1`` (equal bits, 3 cycles off the chain)  no gain
+spread over the 4 steps after the check, 8 lanes per step (38)         0.73
+the same, 16 lanes per step over 2 steps                               0.81
+norm2 of 1, 4 or 8 checks buffered, then ``fdlog`` in one loop         0.62-0.77
+check j's sums at check j + 1 (the sums off ``fdlog``'s chain)         0.80-0.83
+=====================================================================  ==============
+
+The last four lose to register pressure: the step loop holds ~30 of the 32 ``zmm`` registers, and
+state carried across steps (pending logarithms, a buffer) spills it. With ``fdlog``'s ~136
+operations per check fixed by the bitwise equality (fdlibm's evaluation order), against ~830 for 8
+steps, ~0.86-0.9 is about the ceiling of this kernel. ``benchmarks/indicators_overhead.py`` measures
+the ratio (alternating launches, 1 and 2 threads, per wall and per CPU second; its numbers and
+``throughput.py``'s are in ``benchmarks/README.md``).
 
 The renormalisation's ``log`` (once per ~660 steps for a chaotic point) stays the C library's,
 lane by lane, for the lanes that need it: ``fdlog`` there made ``advance_map`` slower (1,090-1,190
