@@ -192,3 +192,21 @@ def test_children_of_the_suite_take_ctrl_c_even_when_it_was_started_ignoring_it(
         cwd=os.path.dirname(__file__),
     )
     assert done.stdout.split() == ["False", "True"], done.stderr
+
+
+def test_the_same_command_again_says_what_it_does_with_the_archive(tmp_path, capsys):
+    """Continuing, or reporting a finished archive, is said in one line on stderr (not with --quiet)."""
+    from warpratchet.cli import main
+
+    out = str(tmp_path / "again.h5")
+    argv = ["run", *MAP_FLAGS, "--points", "100", "--out", out]
+    assert main([*argv, "--steps", "300", "--quiet"]) == 0
+    capsys.readouterr()
+    assert main([*argv, "--steps", "600"]) == 0
+    said = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warpratchet:")]
+    assert said == [f"warpratchet: continuing {out} from its checkpoint at step 300 to step 600"]
+    assert main([*argv, "--steps", "600"]) == 0
+    said = [line for line in capsys.readouterr().err.splitlines() if line.startswith("warpratchet:")]
+    assert said == [f"warpratchet: {out} holds all 600 steps already: its report, nothing run"]
+    assert main([*argv, "--steps", "600", "--quiet"]) == 0
+    assert capsys.readouterr().err == ""

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
+import sys
 import time
 from typing import Any
 
@@ -150,16 +151,24 @@ def _archive(args: argparse.Namespace, spec: RunSpec, plan: dict[str, Any], hist
                 ensemble = arc.ensemble(threads=spec.threads, device=spec.device)
                 history = arc.history or history
         print_warnings(caught)
+        _say(args, f"{args.out} holds all {spec.steps} steps already: its report, nothing run")
         return None, ensemble, history
     if "resume" in plan:  # the same command again: continue where the archive stands
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ArchiveWarning)
             sink, ensemble = ArchiveSink.resume(args.out, threads=spec.threads, device=spec.device)
         print_warnings(caught)
+        _say(args, f"continuing {args.out} from its checkpoint at step {ensemble.step} to step {spec.steps}")
         # An archive written before histories existed: record this session's rows, not archived.
         return sink, ensemble, sink.history or history
     ensemble = _sample(args, spec)
     return ArchiveSink(args.out, ensemble, history=history, **plan), ensemble, history
+
+
+def _say(args: argparse.Namespace, message: str) -> None:
+    """One line on stderr about what the command does with an existing archive (not with --quiet)."""
+    if not args.quiet:
+        print(f"warpratchet: {message}", file=sys.stderr)
 
 
 def _sample(args: argparse.Namespace, spec: RunSpec):
