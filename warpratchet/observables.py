@@ -148,7 +148,8 @@ def reliability(chaotic_points: int, A_stderr: float, classification_bound: floa
     """
     if chaotic_points < MIN_CHAOTIC_POINTS:
         return False, (
-            f"only {chaotic_points} chaotic points (need {MIN_CHAOTIC_POINTS} for a standard error "
+            f"only {chaotic_points} chaotic point{'' if chaotic_points == 1 else 's'} "
+            f"(need {MIN_CHAOTIC_POINTS} for a standard error "
             "known to 10%); run longer or with more points"
         )
     if classification_bound == math.inf:  # summarize: no more chaotic points than ambiguous ones
