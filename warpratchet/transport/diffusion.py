@@ -45,13 +45,17 @@ def _chaotic_gains(
     limit: float,
     gains: np.ndarray,
     mask: np.ndarray,
+    ftle: np.ndarray | None,
     lo: int,
     hi: int,
 ) -> None:
-    """Points ``lo <= i < hi``: ``mask[i]`` whether the FTLE is above ``limit``, ``gains[i]`` (+0.0
-    before) their ``p_n - p_0``, left alone for the others."""
+    """Points ``lo <= i < hi``: ``ftle[i]`` (if given) their FTLE, ``mask[i]`` whether it is above
+    ``limit``, ``gains[i]`` (+0.0 before) their ``p_n - p_0``, left alone for the others."""
     part = {name: state[name][lo:hi] for name in _FIELDS}
-    chaotic = np.greater(lyapunov(part, step), limit, out=mask[lo:hi])
+    exponents = lyapunov(part, step)
+    if ftle is not None:
+        ftle[lo:hi] = exponents
+    chaotic = np.greater(exponents, limit, out=mask[lo:hi])
     p0 = part["p0"]
     # p_n - p_0 exactly as A_n * n is formed in observables.acceleration: winding + (q - frac p0).
     gain = part["winding"] + (part["q"] - (p0 - np.floor(p0)))
@@ -69,6 +73,7 @@ def spread_moments(
     threshold: float | None = None,
     groups: int = GROUPS,
     pool: Executor | None = None,
+    ftle: np.ndarray | None = None,
 ) -> np.ndarray:
     """:func:`~warpratchet.transport.fits.group_moments` of ``p_n - p_0`` over the chaotic points.
 
@@ -79,6 +84,9 @@ def spread_moments(
     chaotic as +0.0. Summed down the columns (NumPy adds row after row there), each group's sums
     are ``group_moments``' own (``bincount`` adds in the points' order too, and adding +0.0 changes
     no sum): the same bits, without gathering the chaotic points (half the cost of a row).
+
+    ``ftle``: an array of shape ``(points,)`` that receives every point's FTLE on the way (a
+    History row at the same step takes it instead of computing it again).
     """
     limit = default_lyapunov_threshold(step) if threshold is None else threshold
     n = len(state["p0"])
@@ -98,7 +106,7 @@ def spread_moments(
 
     # blocks of points, of whole rows (the padding past n stays as it is: its FTLE is not computed)
     points = gains.reshape(-1)[:n], mask.reshape(-1)[:n]
-    each(_chaotic_gains, state, step, limit, *points, scale=groups)
+    each(_chaotic_gains, state, step, limit, *points, ftle, scale=groups)
     count = np.add.reduce(mask, axis=0, dtype=np.int64).astype(np.float64)
     total = np.add.reduce(gains, axis=0)
     mean = np.divide(total, count, out=np.zeros(groups), where=count > 0)
@@ -132,7 +140,9 @@ class Spread(Observer):
         if step in self._pending:
             self._pending = [n for n in self._pending if n > step]
             views = {name: ensemble.array(name) for name in _FIELDS}
-            ensemble.record_spread(step, spread_moments(views, step, ensemble.threshold, pool=self._pool))
+            ftle = np.empty(len(views["p0"]))
+            moments = spread_moments(views, step, ensemble.threshold, pool=self._pool, ftle=ftle)
+            ensemble.record_spread(step, moments, ftle)
 
     def end(self, ensemble: Any) -> None:
         if self._pool is not None:
