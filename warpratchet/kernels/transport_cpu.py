@@ -99,13 +99,10 @@ acc.rows = acc.rows + 1;
 # ``lift`` 1.0 or +0.0). The block decoding takes the three bit planes straight from the top bytes.
 
 
-#: Decode the buffered rows (``after_check`` and ``store``); see the module docstring. Out of line
-#: (a lambda that is never inlined, called every ~120 steps): inlined into the step loop, its code
-#: cost the loop registers (200 instructions a step instead of 180, more spills).
+#: Decode the buffered rows (``after_check`` and ``store``); see the module docstring.
 DECODE_CPU = (
     _TYPES
     + f"""
-auto decode = [&]() __attribute__((noinline)) {{
 const int rows = acc.rows;
 if (rows == 0) return;
 const int N = {INTERLEAVE};
@@ -272,8 +269,6 @@ __builtin_memcpy(trackers + 3 * N, &fcode, N);
 __builtin_memcpy(trackers + 4 * N, &flen, N);
 acc.base += rows;
 acc.rows = 0;
-}};
-decode();
 """
 )
 
