@@ -69,8 +69,9 @@ def default_chunk_steps(points: int) -> int:
     (~5% of a 250-step chunk at ~1.2e9 point-steps/s), ~2 ms more for ``advance_map_transport``
     (its carry). Kept at 2.5e8: a transport run of 12 000 steps ends 123 chunks, of which only 30
     are regular chunk ends (the rest are History rows and block ends), so longer chunks would not
-    move ``--transport``'s ratio; a plain run of 10^6 points x 120 000 steps would save ~3% with
-    4x longer chunks, at the price of 4x slower progress, Ctrl-C and default checkpoints.
+    move ``--transport``'s ratio; by that launch cost, a plain run of 10^6 points x 120 000 steps
+    would save ~3% with 4x longer chunks (an estimate, not measured), at the price of 4x slower
+    progress, Ctrl-C and default checkpoints.
     """
     return int(min(100_000, max(16, 250_000_000 // max(points, 1))))
 
