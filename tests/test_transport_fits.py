@@ -156,3 +156,34 @@ def test_spread_moments_in_blocks_and_threads_equal_one_pass_bitwise(points):
         assert spread_moments(state, 300, threshold).tobytes() == expected
         with ThreadPoolExecutor(2) as pool:
             assert spread_moments(state, 300, threshold, pool=pool).tobytes() == expected
+
+
+def test_history_rows_beside_spread_rows_are_a_plain_runs_bit_for_bit(monkeypatch):
+    """A History row at a spread row's step takes the FTLE the spread row computed: same bits.
+
+    (1 << 16) + 5 points on 2 threads: the spread's blocks (and threads) are not the summary's
+    chunks. Each spread step's History row must have used the lent FTLE.
+    """
+    import warpratchet.observables as observables
+    from warpratchet import Ensemble
+
+    lent = []
+    summarize = observables.summarize
+
+    def spy(state, step, threshold=None, rule="strict", ftle=None):
+        lent.append((step, ftle is not None))
+        return summarize(state, step, threshold, rule, ftle)
+
+    monkeypatch.setattr("warpratchet.history.summarize", spy)
+    rows = []
+    for cls in (Ensemble, TransportEnsemble):
+        lent.clear()
+        ens = cls.sample(MapParams(3.0, 0.1, 0.01), (1 << 16) + 5, "strip", seed=4, threads=2)
+        history = History()
+        ens.run(400, [history])
+        rows.append(history.as_dict())
+        used = {step for step, given in lent if given}
+        assert used == (set(spread_steps(0, 400)) if cls is TransportEnsemble else set())
+    assert rows[0].keys() == rows[1].keys()
+    for name in rows[0]:
+        assert np.asarray(rows[0][name]).tobytes() == np.asarray(rows[1][name]).tobytes(), name

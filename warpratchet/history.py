@@ -169,7 +169,11 @@ def _variance(state: Mapping[str, np.ndarray]) -> float:
 
 
 def history_row(
-    state: Mapping[str, np.ndarray], step: int, threshold: float | None = None, rule: str = "strict"
+    state: Mapping[str, np.ndarray],
+    step: int,
+    threshold: float | None = None,
+    rule: str = "strict",
+    ftle: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """One history row (:data:`HISTORY_FIELDS`) of a state at global ``step``.
 
@@ -184,8 +188,10 @@ def history_row(
         of ``rule``).
     rule : str
         ``"strict"`` or ``"positive"`` (:data:`~warpratchet.observables.THRESHOLD_RULES`).
+    ftle : ndarray, shape (points,), optional
+        The FTLE of ``state`` at ``step``, if already computed (:func:`~warpratchet.observables.summarize`).
     """
-    summary = summarize(dict(state), step, threshold, rule)
+    summary = summarize(dict(state), step, threshold, rule, ftle)
     n_c = summary.chaotic_points
     # Var(p_n - p_0) over the chaotic points is n^2 Var(A_n) = n^2 N_c A_stderr^2: no second pass
     # over the FTLE (the costly part of a summary).
@@ -337,7 +343,10 @@ class History(Observer):
         views = {name: ensemble.array(name) for name in STATE_FIELDS}  # zero-copy on the CPU
         if row_due:
             self._pending = [n for n in self._pending if n > step]
-            row = history_row(views, step, self.threshold, self.rule)
+            # an ensemble that computed its FTLE at this chunk end already (a transport run's spread
+            # row) lends it: the same values, not computed twice
+            known = getattr(ensemble, "known_ftle", None)
+            row = history_row(views, step, self.threshold, self.rule, known(step) if known else None)
             for name in HISTORY_FIELDS:
                 self.rows[name].append(row[name])
         if block_due:

@@ -245,15 +245,21 @@ class _Sums:
         return np.add.reduce(np.array(self.parts, dtype=np.float64))
 
 
-def _per_point(state: dict[str, np.ndarray], step: int, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray]:
-    """FTLE and ``A_n`` of points ``lo:hi`` (views of ``state``, no copies of it)."""
+def _per_point(
+    state: dict[str, np.ndarray], step: int, lo: int, hi: int, ftle: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """FTLE (``ftle[lo:hi]`` if given) and ``A_n`` of points ``lo:hi`` (views of ``state``, no copies)."""
     part = {name: state[name][lo:hi] for name in ("winding", "q", "p0", "dx", "dp", "log_stretch")}
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # non-finite: refused by the caller
-        return lyapunov(part, step), acceleration(part, step)
+        return lyapunov(part, step) if ftle is None else ftle[lo:hi], acceleration(part, step)
 
 
 def summarize(
-    state: dict[str, np.ndarray], step: int, threshold: float | None = None, rule: str = "strict"
+    state: dict[str, np.ndarray],
+    step: int,
+    threshold: float | None = None,
+    rule: str = "strict",
+    ftle: np.ndarray | None = None,
 ) -> Summary:
     """Mean ``A_n`` over chaotic points with its standard error, FTLE statistics, chaotic fraction.
 
@@ -282,6 +288,9 @@ def summarize(
     ensembles add the chunk sums in a different order than NumPy's pairwise sum of the whole
     array would: the same error bound (``O(log N)`` roundings), different last bits.
 
+    ``ftle``: :func:`lyapunov` of ``state`` at ``step`` if the caller has it already (shape
+    ``(points,)``; the costly part of a summary), else computed here.
+
     Raises
     ------
     ParameterError
@@ -295,14 +304,17 @@ def summarize(
     if threshold is None:
         threshold = lyapunov_threshold(step, rule)
     n = len(state["log_stretch"])
+    if ftle is not None and np.shape(ftle) != (n,):
+        raise ValueError(f"ftle has shape {np.shape(ftle)}, expected ({n},)")
     bounds = [(lo, min(n, lo + SUMMARY_CHUNK)) for lo in range(0, max(n, 1), SUMMARY_CHUNK)]
     # One chunk: keep its per-point values for the second pass instead of computing them again.
     kept = {}
+    known = ftle  # the caller's FTLE (the loops below name each chunk's ftle)
     sum_a, sum_ftle = _Sums(), _Sums()
     chaotic_points = n_ambiguous = 0
     ftle_min = math.inf
     for lo, hi in bounds:
-        ftle, acc = _per_point(state, step, lo, hi)
+        ftle, acc = _per_point(state, step, lo, hi, known)
         for values, name, why in (
             (ftle, "FTLE", "the tangent overflowed float64"),
             (acc, "A_n", "x, q, winding or p0 is not finite"),
@@ -330,7 +342,7 @@ def summarize(
     squares_a, squares_ftle, deviations = _Sums(), _Sums(), _Sums()
     if chaotic_points > 1 or n_ambiguous:
         for lo, hi in bounds:
-            ftle, acc = kept.get(lo) or _per_point(state, step, lo, hi)
+            ftle, acc = kept.get(lo) or _per_point(state, step, lo, hi, known)
             mask = ftle > threshold
             d_a = acc[mask] - a_mean
             d_ftle = ftle[mask] - ftle_mean

@@ -49,9 +49,10 @@ class Variant:
         after_step(ref accumulators, ref Lanes, global_step: int64)
         after_check(ref accumulators, ref Lanes, check: int64)
 
-    ``cpu_after_step``, ``cpu_after_check``, ``cpu_store``: optional replacements used with the
-    CPU body (e.g. a ``wp.func_native`` on whole lane vectors; ``cpu_store`` for a variant whose
-    CPU hooks defer work to the end of the launch); they must give bitwise the same results,
+    ``cpu_after_step``, ``cpu_after_check``, ``cpu_load``, ``cpu_store``: optional replacements
+    used with the CPU body (e.g. a ``wp.func_native`` on whole lane vectors; ``cpu_load`` and
+    ``cpu_store`` for a variant whose CPU hooks keep accumulators of their own type and defer
+    work to the end of the launch); they must give bitwise the same results,
     which ``tests/test_kernels.py`` checks for the package's variants (add a new one there).
     """
 
@@ -65,15 +66,18 @@ class Variant:
     cpu_after_step: Any = None
     cpu_after_check: Any = None
     cpu_store: Any = None
+    cpu_load: Any = None
 
 
 def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kernel:
     check_mask = wp.int64(RENORM_CHECK_EVERY - 1)
     check_shift = wp.int64(RENORM_CHECK_EVERY.bit_length() - 1)
     after_step, after_check, store = variant.after_step, variant.after_check, variant.store
+    load = variant.load
     if body is CPU:
         after_step = variant.cpu_after_step or after_step
         after_check = variant.cpu_after_check or after_check
+        load = variant.cpu_load or load
         store = variant.cpu_store or store
 
     def advance(state: State, extra: variant.arrays, step0: wp.int64, steps: int, p: Coefficients):
@@ -81,7 +85,7 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
         n = state.x.shape[0]
         first, spacing = wp.static(body.layout)(tid, n)
         s = wp.static(body.load)(state, first, spacing, n)
-        acc = wp.static(variant.load)(extra, first, spacing, n)
+        acc = wp.static(load)(extra, first, spacing, n)
         global_step = step0
         for _s in range(steps):
             wp.static(body.step)(s, p)

@@ -21,16 +21,17 @@ vectors), which ``tests/test_transport.py`` checks against each other and agains
 
 The three per-point values are the carry state: runs still open at the end of a launch continue
 in the next one, so chunking, thread count and resuming (the carry is checkpointed with the
-state) never change a count. Each Warp thread counts into its own histogram and adds it to the
-launch's histogram array at the end (an atomic add: one array per CPU launch, or one for all
-CUDA threads); integer sums do not depend on the order.
+state) never change a count. A portable thread counts into its own histogram and adds it to the
+launch's histogram array at the end (an atomic add: one array for all CUDA threads); the CPU
+hooks add to the launch's array directly (one array per CPU launch); integer sums do not depend
+on the order.
 """
 
 import warp as wp
 
-from .advance import Variant, advance_kernel
+from .advance import AdvanceKernel, Variant
 from .step import INTERLEAVE, Lanes, load_lanes, store_lane_vector
-from .transport_cpu import BINS, DECODE_CPU, FINISH_CPU, STEP_CPU
+from .transport_cpu import BINS, DECODE_CPU, FINISH_CPU, ROWS, SCRATCH_BYTES, STEP_CPU
 
 __all__ = ["BINS", "HISTOGRAMS", "CARRY_FIELDS", "advance_map_transport", "TRANSPORT"]
 
@@ -40,11 +41,7 @@ HISTOGRAMS = ("return_times", "flights_plus", "flights_minus")
 CARRY_FIELDS = ("last_visit", "flight_gain", "flight_start")
 
 _LaneInts = wp.types.vector(length=INTERLEAVE, dtype=wp.int64)
-_LaneBytes = wp.types.vector(length=INTERLEAVE, dtype=wp.uint8)
 _Counts = wp.types.vector(length=3 * BINS, dtype=wp.int64)
-#: Steps buffered by the CPU hooks between two decodes (at a renormalisation check, every 8 steps,
-#: once fewer than 8 rows are free): a decode spills the step's registers, so it is kept rare.
-_ROWS = 128
 
 
 @wp.struct
@@ -53,29 +50,43 @@ class _Arrays:
     flight_gain: wp.array(dtype=wp.int64)
     flight_start: wp.array(dtype=wp.int64)
     counts: wp.array(dtype=wp.int64)  # shape (3 * BINS,): this launch's histograms, added to
+    scratch: wp.array(dtype=wp.uint8)  # (SCRATCH_BYTES,): the CPU hooks' buffer (.transport_cpu)
 
 
 @wp.struct
 class _Accumulators:
+    """The portable hooks' per-thread state (what CUDA runs)."""
+
     last_visit: _LaneInts
     flight_gain: _LaneInts
     flight_start: _LaneInts
     lanes: int  # lanes 0 .. lanes-1 are real points (the rest repeat point n - 1)
     counts: _Counts  # this thread's histograms
-    # The CPU hooks' own state (.transport_cpu): buffered codes and byte trackers.
-    buffer: wp.types.vector(length=_ROWS * INTERLEAVE, dtype=wp.uint8)
-    strip: wp.types.vector(length=_ROWS, dtype=wp.uint32)  # in_strip per buffered row, bit k = lane k
+
+
+@wp.struct
+class _CpuAccumulators:
+    """The CPU hooks' per-thread state: a few scalars. Their buffer and byte trackers live in the
+    launch's ``scratch`` array, not here: Warp zero-initialises a thread's struct, and with the
+    4.6 KB buffer inside that cost ~10 ms per launch of 10^6 points (a tenth of a default chunk)."""
+
+    arrays: _Arrays  # carry (read by the first decode, written by the store), counts, scratch
+    first: int
+    spacing: int
+    lanes: int  # lanes 0 .. lanes-1 are real points
     rows: int  # rows of the buffer in use
     base: wp.int64  # global step before buffer row 0
     ready: int  # 1 once the trackers hold the carry
-    valid: _LaneBytes
-    visited: _LaneBytes
-    age: _LaneBytes
-    fcode: _LaneBytes
-    flen: _LaneBytes
-    age_extra: _LaneInts
-    flen_extra: _LaneInts
     tallies: wp.types.vector(length=9, dtype=wp.int64)
+
+
+@wp.func
+def _lanes(first: int, spacing: int, n: int):
+    lanes = int(0)  # noqa: UP018 - Warp: a variable changed in a loop needs a constructor
+    for k in range(wp.static(INTERLEAVE)):
+        if first + k * spacing < n:
+            lanes = k + 1  # real lanes are a prefix: first + k * spacing grows with k
+    return lanes
 
 
 @wp.func
@@ -84,11 +95,7 @@ def _load(arrays: _Arrays, first: int, spacing: int, n: int):
     acc.last_visit = load_lanes(arrays.last_visit, _LaneInts(), first, spacing, n)
     acc.flight_gain = load_lanes(arrays.flight_gain, _LaneInts(), first, spacing, n)
     acc.flight_start = load_lanes(arrays.flight_start, _LaneInts(), first, spacing, n)
-    lanes = int(0)  # noqa: UP018 - Warp: a variable changed in a loop needs a constructor
-    for k in range(wp.static(INTERLEAVE)):
-        if first + k * spacing < n:
-            lanes = k + 1  # real lanes are a prefix: first + k * spacing grows with k
-    acc.lanes = lanes
+    acc.lanes = _lanes(first, spacing, n)
     return acc
 
 
@@ -102,30 +109,38 @@ def _store(arrays: _Arrays, acc: _Accumulators, first: int, spacing: int, n: int
             wp.atomic_add(arrays.counts, b, acc.counts[b])
 
 
+@wp.func
+def _load_cpu(arrays: _Arrays, first: int, spacing: int, n: int):
+    acc = _CpuAccumulators()
+    acc.arrays = arrays
+    acc.first = first
+    acc.spacing = spacing
+    acc.lanes = _lanes(first, spacing, n)
+    return acc
+
+
 @wp.func_native(DECODE_CPU)
-def _decode_cpu(acc: wp.ref[_Accumulators]): ...
+def _decode_cpu(acc: wp.ref[_CpuAccumulators]): ...
 
 
 @wp.func_native(STEP_CPU)
-def _after_step_cpu(acc: wp.ref[_Accumulators], s: wp.ref[Lanes], global_step: wp.int64): ...
+def _after_step_cpu(acc: wp.ref[_CpuAccumulators], s: wp.ref[Lanes], global_step: wp.int64): ...
 
 
 @wp.func
-def _after_check_cpu(acc: wp.ref[_Accumulators], s: wp.ref[Lanes], check: wp.int64):
-    if acc.rows > wp.static(_ROWS - 8):  # the next 8 steps would not fit
+def _after_check_cpu(acc: wp.ref[_CpuAccumulators], s: wp.ref[Lanes], check: wp.int64):
+    if acc.rows > wp.static(ROWS - 8):  # the next 8 steps would not fit
         _decode_cpu(acc)
 
 
 @wp.func_native(FINISH_CPU)
-def _finish_cpu(acc: wp.ref[_Accumulators], arrays: _Arrays, first: int, spacing: int, n: int): ...
+def _finish_cpu(acc: wp.ref[_CpuAccumulators]): ...
 
 
 @wp.func
-def _store_cpu(arrays: _Arrays, acc: wp.ref[_Accumulators], first: int, spacing: int, n: int):
-    # by reference: a copy of the accumulators (6.7 KB with the buffer) per launch and thread is
-    # measurable on short launches
+def _store_cpu(arrays: _Arrays, acc: wp.ref[_CpuAccumulators], first: int, spacing: int, n: int):
     _decode_cpu(acc)  # the rows since the last check
-    _finish_cpu(acc, arrays, first, spacing, n)
+    _finish_cpu(acc)
 
 
 @wp.func
@@ -177,8 +192,24 @@ TRANSPORT = Variant(
     cpu_after_step=_after_step_cpu,
     cpu_after_check=_after_check_cpu,
     cpu_store=_store_cpu,
+    cpu_load=_load_cpu,
 )
+
+
+class _TransportKernel(AdvanceKernel):
+    """:class:`AdvanceKernel` whose :meth:`launch` adds the launch's scratch array itself."""
+
+    def launch(self, device, state, extra, step0, steps, params, body=None) -> None:
+        """:meth:`AdvanceKernel.launch` with ``extra`` = the carry arrays and the launch's histogram
+        array (:data:`CARRY_FIELDS`, then ``(3 * BINS,)`` int64, added to)."""
+        # One scratch per launch: Warp runs a CPU launch's threads one after the other (its own
+        # CPU atomics are plain adds for that reason), so they share it; concurrent launches
+        # (CPU shards) each get their own. The portable hooks never touch it.
+        size = SCRATCH_BYTES if wp.get_device(device).is_cpu else 0
+        scratch = wp.empty(size, dtype=wp.uint8, device=device)
+        super().launch(device, state, [*extra, scratch], step0, steps, params, body)
+
 
 #: ``advance_map`` plus the return-time and flight histograms (module docstring); its own Warp
 #: modules, compiled only when a transport run needs them.
-advance_map_transport = advance_kernel(TRANSPORT, module_suffix=".transport")
+advance_map_transport = _TransportKernel(TRANSPORT, module_suffix=".transport")

@@ -12,20 +12,27 @@ state (the registers spill). So the CPU hooks split the work:
   of the launch (``store``): the rows are decoded (the gain codes are three bits of the top
   bytes, ``_GAIN_CODES``) with the trackers as byte vectors (all lanes of a row at once), each
   row's events counted by lengths ``< 2``, ``< 4``, ``< 8`` with a popcount of the event mask;
-  the rare events of length 8 or more go to the thread's histogram one by one. Where the CPU has AVX-512 and
-  GFNI, each full block of 8 rows is decoded at once instead: transposed into bit planes (one byte
-  per lane, bit i = row i), its visits and gain changes found with bit tricks on the planes.
+  the rare events of length 8 or more go to the launch's histogram array one by one. Where the
+  CPU has AVX-512 and GFNI, each full block of 8 rows is decoded at once instead
+  (:mod:`.transport_block`).
 
 Trackers: ``age`` (steps since the last visit to B), ``flen`` (steps of the run in progress) are
 bytes kept at most :data:`CAP` after each block, the excess carried exactly in int64 (``*_extra``);
 ``fcode`` is the gain code of the run in progress. The carry arrays hold absolute global steps;
-the first block of a launch converts them (the buffer knows its global steps) and ``store``
-converts back. Every count equals the portable hooks' (``tests/test_transport.py``).
+the first block of a thread converts them (the buffer knows its global steps) and ``store``
+converts back, as lane vectors. Every count equals the portable hooks' (``tests/test_transport.py``).
+
+Where the state lives: the buffer and the trackers in the launch's scratch array
+(:data:`SCRATCH_BYTES`, shared by the launch's threads, which Warp runs one after the other on
+the CPU), a few scalars in the thread's accumulator struct. Warp zero-initialises that struct
+for every thread; with the 4.6 KB buffer in it, that and the scalar carry conversion cost ~12 ms
+per launch of 10^6 points, ~15% of a launch of the default chunk; now ~2 ms.
 """
 
 from .step import INTERLEAVE
+from .transport_block import BLOCK_CPU
 
-__all__ = ["BINS", "CAP", "STEP_CPU", "DECODE_CPU", "FINISH_CPU"]
+__all__ = ["BINS", "CAP", "ROWS", "SCRATCH_BYTES", "STEP_CPU", "DECODE_CPU", "FINISH_CPU"]
 
 #: Histogram bins: bin ``k`` counts lengths ``2^k <= L < 2^(k+1)``; 64 cover every int64 step count.
 BINS = 64
@@ -34,6 +41,19 @@ BINS = 64
 #: most 128 steps, so bytes stay below 256).
 CAP = 64
 
+#: Steps buffered between two decodes (at a renormalisation check, every 8 steps, once fewer than
+#: 8 rows are free): a decode spills the step's registers, so it is kept rare.
+ROWS = 128
+
+# The launch's scratch array (bytes; a launch's threads use it one after the other): the buffer
+# (ROWS rows of INTERLEAVE gain bytes), the in_strip masks (ROWS x 4 bytes), the byte trackers
+# (valid, visited, age, fcode, flen: INTERLEAVE bytes each), the int64 excess (age, flen).
+_STRIP = ROWS * INTERLEAVE
+_TRACKERS = _STRIP + 4 * ROWS
+_EXTRA = _TRACKERS + 5 * INTERLEAVE
+#: Bytes of the launch's scratch array.
+SCRATCH_BYTES = _EXTRA + 2 * 8 * INTERLEAVE
+
 _MASK = "unsigned int" if INTERLEAVE == 32 else "unsigned short"
 
 _TYPES = f"""
@@ -41,6 +61,13 @@ typedef unsigned char u8v __attribute__((ext_vector_type({INTERLEAVE})));
 typedef unsigned short u16v __attribute__((ext_vector_type({INTERLEAVE})));
 typedef bool bv __attribute__((ext_vector_type({INTERLEAVE})));
 typedef {_MASK} mask_t;
+typedef long long i64v __attribute__((ext_vector_type({INTERLEAVE})));
+typedef int i32v __attribute__((ext_vector_type({INTERLEAVE})));
+static constexpr i32v lane_index = {{{", ".join(str(k) for k in range(INTERLEAVE))}}};
+/* the thread's points are one contiguous block of every carry array (the CPU layout): lane vectors */
+#define WHOLE(acc) ((acc).lanes == {INTERLEAVE} && (acc).spacing == 1 \\
+    && (acc).arrays.last_visit.strides[0] == 8 && (acc).arrays.flight_gain.strides[0] == 8 \\
+    && (acc).arrays.flight_start.strides[0] == 8)
 """
 
 #: ``after_step``: store this step's facts as they come out of the step, with no conversion: the
@@ -58,9 +85,11 @@ __builtin_memcpy(&in_strip, &s.in_strip, sizeof(v_t));
 const raw_t raw = __builtin_bit_cast(raw_t, gain);
 const u8v top = __builtin_shufflevector(raw, raw, {", ".join(str(8 * k + 7) for k in range(INTERLEAVE))});
 const bv inside = __builtin_convertvector(in_strip != 0.0, bv);
+unsigned char* const scratch = acc.arrays.scratch.data;
 if (acc.rows == 0) acc.base = global_step - 1;
-__builtin_memcpy(&acc.buffer.c[acc.rows * {INTERLEAVE}], &top, sizeof(u8v));
-acc.strip.c[acc.rows] = __builtin_bit_cast({_MASK}, inside);
+__builtin_memcpy(scratch + acc.rows * {INTERLEAVE}, &top, sizeof(u8v));
+const unsigned int mask = __builtin_bit_cast({_MASK}, inside);
+__builtin_memcpy(scratch + {_STRIP} + 4 * acc.rows, &mask, 4);
 acc.rows = acc.rows + 1;
 """
 
@@ -70,115 +99,6 @@ acc.rows = acc.rows + 1;
 # ``lift`` 1.0 or +0.0). The block decoding takes the three bit planes straight from the top bytes.
 
 
-def _indices(values) -> str:
-    return ", ".join(str(v) for v in values)
-
-
-# Block decoding (a full block of 8 rows, AVX-512 with GFNI): the 8 x 32 codes become bit planes
-# (byte l of plane b: bit i = bit b of lane l's code at row i), in three byte shuffles and two
-# rounds of GF2P8AFFINEQB, which transposes the 8 x 8 bit matrix in each 64-bit word (with the
-# word as the matrix operand, byte p holding matrix row 7 - p). Stage 1: per (row, octet of
-# lanes) word, byte b = bit b of the octet's codes (bit i = lane 7 - i of the octet). Stage 2:
-# gather for each (plane, octet) the 8 rows' bytes, row 7 - p at byte p. Stage 3: transpose again:
-# byte k of word (plane b, octet j) = lane 8 j + 7 - k over the rows. Stage 4: lanes in order.
-_STAGE2 = [
-    ((7 - p) * 4 + j) * 8 + b for b in (0, 6, 7) for j in range(4) for p in range(8)
-]  # output byte (b * 4 + j) * 8 + p: the gain code's planes are bits 0, 6, 7 of the top bytes
-# the in_strip plane from the rows' masks (bits reversed: byte j of a row = its octet j)
-_STAGE2 += [128 + (7 - p) * 4 + j for j in range(4) for p in range(8)]
-_STAGE4 = [[(b * 4 + lane // 8) * 8 + 7 - lane % 8 for lane in range(32)] for b in range(4)]
-
-_BLOCK_CPU = f"""
-#if defined(__GFNI__) && defined(__AVX512BW__)
-for (; r0 + 8 <= rows; r0 += 8) {{
-    typedef char i8x64 __attribute__((vector_size(64)));
-    typedef unsigned char u8x64 __attribute__((ext_vector_type(64)));
-    typedef unsigned char u8x128 __attribute__((ext_vector_type(128)));
-    typedef long long i64x8 __attribute__((vector_size(64)));
-    const long long T = 0x8040201008040201LL; /* byte j = 1 << j: the transpose */
-    const i64x8 transpose = {{T, T, T, T, T, T, T, T}};
-    u8x64 rows01, rows23, rows45, rows67;
-    __builtin_memcpy(&rows01, &acc.buffer.c[r0 * N + 0], 64);
-    __builtin_memcpy(&rows23, &acc.buffer.c[r0 * N + 64], 64);
-    __builtin_memcpy(&rows45, &acc.buffer.c[r0 * N + 128], 64);
-    __builtin_memcpy(&rows67, &acc.buffer.c[r0 * N + 192], 64);
-#define GF_T(v) ((u8x64)__builtin_ia32_vgf2p8affineqb_v64qi((i8x64)transpose, (i8x64)(v), 0))
-    const u8x64 s01 = GF_T(rows01), s23 = GF_T(rows23), s45 = GF_T(rows45), s67 = GF_T(rows67);
-    u8x64 strip_rows = 0;
-    __builtin_memcpy(&strip_rows, &acc.strip.c[r0], 32);
-    /* x = the masks' bytes, matrix T: bit i of each byte becomes bit 7 - i */
-    const u8x64 strip_reversed =
-        (u8x64)__builtin_ia32_vgf2p8affineqb_v64qi((i8x64)strip_rows, (i8x64)transpose, 0);
-    const u8x128 lo = __builtin_shufflevector(s01, s23, {_indices(range(128))});
-    const u8x128 hi = __builtin_shufflevector(s45, s67, {_indices(range(128))});
-    const u8x128 gain_planes = __builtin_shufflevector(lo, hi, {_indices(_STAGE2[:96] + [0] * 32)});
-    const u8x128 strip_planes =
-        __builtin_shufflevector(strip_reversed, strip_reversed, {_indices(range(128))});
-    const u8x128 gathered =
-        __builtin_shufflevector(gain_planes, strip_planes, {_indices(list(range(96)) + _STAGE2[96:])});
-    const u8x64 g01 = __builtin_shufflevector(gathered, gathered, {_indices(range(64))});
-    const u8x64 g23 = __builtin_shufflevector(gathered, gathered, {_indices(range(64, 128))});
-    const u8x64 t01 = GF_T(g01), t23 = GF_T(g23);
-#undef GF_T
-    const u8x128 planes = __builtin_shufflevector(t01, t23, {_indices(range(128))});
-    const u8v G0 = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[0])});
-    const u8v G1 = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[1])});
-    const u8v G2 = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[2])});
-    const u8v I = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[3])});
-    const u8v zero = 0;
-    const u8v valid_mask = valid_bytes * (u8v)0xFF;
-    /* -- returns: V, bit i = a visit at row i -- */
-    const u8v V = I & valid_mask;
-    const bv has = __builtin_convertvector(V != zero, bv);
-    const u8v f = ctz8(V);
-    const u8v gap0 = age + f + one;
-    const bv r8 = tally_returns(has & visited, gap0);
-    rare_returns(__builtin_bit_cast(mask_t, has & ~r8), gap0);
-    /* the visits after the first: gaps of 1 to 7 steps, from the rows before them */
-    const u8v later = V & (V - one);
-    const u8v before1 = V << 1, before2 = V << 2, before3 = V << 3; /* a visit 1, 2, 3 rows before */
-    const u8v ge2 = later & ~before1;
-    const u8v ge4 = ge2 & ~before2 & ~before3;
-    const u8v all = popcount8(later);
-    t[0] += all - popcount8(ge2);
-    t[1] += all - popcount8(ge4);
-    t[2] += all;
-    age = has ? clz8(V) : age + eight;
-    visited = visited | has;
-    /* -- flights: bit i of B = the gain code changes at row i (row 0 against the block before) -- */
-    const u8v p0 = fcode & one, p1 = (fcode >> 1) & one, p2 = fcode >> 2;
-    const u8v B = (G0 ^ ((G0 + G0) | p0)) | (G1 ^ ((G1 + G1) | p1)) | (G2 ^ ((G2 + G2) | p2));
-    const u8v up_rows = ~G2 & (G1 | G0), down_rows = G2;
-    const u8v fb = ctz8(B);
-    const bv ends = __builtin_convertvector(B != zero, bv) & valid;
-    const u8v length0 = flen + fb;
-    const bv moving = ends & __builtin_convertvector(fcode != 0, bv);
-    const bv up0 = moving & __builtin_convertvector(fcode < four, bv);
-    const bv c8 = tally_flights(moving, up0, length0);
-    rare_flights(__builtin_bit_cast(mask_t, ends & ~c8), length0, fcode);
-    /* runs that start at a boundary and end at the next one within the block (the last carries) */
-    const u8v last_boundary = reverse8(lowest8(reverse8(B)));
-    const u8v starts = (B ^ last_boundary) & valid_mask;
-    const u8v C = ~B;
-    const u8v e2 = C >> 1, e4 = e2 & (C >> 2) & (C >> 3);
-    const u8v up_starts = starts & up_rows, down_starts = starts & down_rows;
-    const u8v n_up = popcount8(up_starts), n_down = popcount8(down_starts);
-    const u8v up2 = popcount8(up_starts & e2), up4 = popcount8(up_starts & e4);
-    const u8v down2 = popcount8(down_starts & e2), down4 = popcount8(down_starts & e4);
-    t[3] += (n_up - up2) + (n_down - down2);
-    t[4] += (n_up - up4) + (n_down - down4);
-    t[5] += n_up + n_down;
-    t[6] += n_up - up2;
-    t[7] += n_up - up4;
-    t[8] += n_up;
-    flen = ends ? clz8(B) + one : flen + eight;
-    u8v last_row;
-    __builtin_memcpy(&last_row, &acc.buffer.c[(r0 + 7) * N], N);
-    fcode = gain_code(last_row);
-}}
-#endif
-"""
-
 #: Decode the buffered rows (``after_check`` and ``store``); see the module docstring.
 DECODE_CPU = (
     _TYPES
@@ -186,41 +106,50 @@ DECODE_CPU = (
 const int rows = acc.rows;
 if (rows == 0) return;
 const int N = {INTERLEAVE};
-long long* age_extra = (long long*)&acc.age_extra;
-long long* flen_extra = (long long*)&acc.flen_extra;
+unsigned char* const buffer = acc.arrays.scratch.data;
+const unsigned int* const strip = (const unsigned int*)(buffer + {_STRIP}); /* 4 bytes a row */
+unsigned char* const trackers = buffer + {_TRACKERS}; /* valid, visited, age, fcode, flen */
+long long* const age_extra = (long long*)(buffer + {_EXTRA});
+long long* const flen_extra = age_extra + N;
 if (!acc.ready) {{
-    /* First block of the launch: the carry (absolute global steps) becomes the trackers at the
-       step before row 0. */
+    /* First block of the thread: the carry (absolute global steps) becomes the trackers at the
+       step before row 0 (lanes past the end: no visit, no flight). */
     const long long b0 = acc.base;
-    const long long* last_visit = (const long long*)&acc.last_visit;
-    const long long* flight_gain = (const long long*)&acc.flight_gain;
-    const long long* flight_start = (const long long*)&acc.flight_start;
-    unsigned char visited[N], fcode[N], age[N], flen[N], valid[N];
-    for (int k = 0; k < N; k++) {{
-        valid[k] = k < acc.lanes;
-        visited[k] = valid[k] && last_visit[k] >= 0;
-        const long long a = visited[k] ? b0 - last_visit[k] : 0;
-        age[k] = a < {CAP} ? (unsigned char)a : {CAP};
-        age_extra[k] = a < {CAP} ? 0 : a - {CAP};
-        const long long g = valid[k] ? flight_gain[k] : 0;
-        fcode[k] = (unsigned char)(g < 0 ? 4 - g : g);
-        const long long l = b0 - flight_start[k] + 1;
-        flen[k] = l < {CAP} ? (unsigned char)l : {CAP};
-        flen_extra[k] = l < {CAP} ? 0 : l - {CAP};
+    i64v last_visit = -1, flight_gain = 0, flight_start = b0;
+    if (WHOLE(acc)) {{
+        __builtin_memcpy(&last_visit, wp::address(acc.arrays.last_visit, acc.first), sizeof(i64v));
+        __builtin_memcpy(&flight_gain, wp::address(acc.arrays.flight_gain, acc.first), sizeof(i64v));
+        __builtin_memcpy(&flight_start, wp::address(acc.arrays.flight_start, acc.first), sizeof(i64v));
+    }} else {{
+        for (int k = 0; k < acc.lanes; k++) {{
+            const int i = acc.first + k * acc.spacing;
+            last_visit[k] = *wp::address(acc.arrays.last_visit, i);
+            flight_gain[k] = *wp::address(acc.arrays.flight_gain, i);
+            flight_start[k] = *wp::address(acc.arrays.flight_start, i);
+        }}
     }}
-    __builtin_memcpy(&acc.visited, visited, N);
-    __builtin_memcpy(&acc.fcode, fcode, N);
-    __builtin_memcpy(&acc.age, age, N);
-    __builtin_memcpy(&acc.flen, flen, N);
-    __builtin_memcpy(&acc.valid, valid, N);
+    const i64v zero64 = 0, cap64 = {CAP};
+    const auto seen = last_visit >= zero64;
+    const i64v a = seen ? b0 - last_visit : zero64;
+    const i64v l = b0 - flight_start + 1;
+    const i64v a_extra = a < cap64 ? zero64 : a - cap64, l_extra = l < cap64 ? zero64 : l - cap64;
+    const u8v bytes[5] = {{
+        __builtin_convertvector(lane_index < acc.lanes, u8v) & (u8v)1, /* valid */
+        __builtin_convertvector(seen, u8v) & (u8v)1, /* visited */
+        __builtin_convertvector(a - a_extra, u8v), /* age */
+        __builtin_convertvector(flight_gain < zero64 ? 4 - flight_gain : flight_gain, u8v), /* fcode */
+        __builtin_convertvector(l - l_extra, u8v)}}; /* flen */
+    __builtin_memcpy(trackers, bytes, 5 * N);
+    __builtin_memcpy(age_extra, &a_extra, sizeof(i64v));
+    __builtin_memcpy(flen_extra, &l_extra, sizeof(i64v));
     acc.ready = 1;
 }}
 u8v age, visited_bytes, fcode, flen, valid_bytes;
-__builtin_memcpy(&age, &acc.age, N);
-__builtin_memcpy(&visited_bytes, &acc.visited, N);
-__builtin_memcpy(&fcode, &acc.fcode, N);
-__builtin_memcpy(&flen, &acc.flen, N);
-__builtin_memcpy(&valid_bytes, &acc.valid, N);
+__builtin_memcpy(&valid_bytes, trackers, N);
+__builtin_memcpy(&visited_bytes, trackers + N, N);
+__builtin_memcpy(&age, trackers + 2 * N, N);
+__builtin_memcpy(&fcode, trackers + 3 * N, N);
+__builtin_memcpy(&flen, trackers + 4 * N, N);
 const bv valid = __builtin_convertvector(valid_bytes, bv);
 bv visited = __builtin_convertvector(visited_bytes, bv);
 /* cumulative tallies per lane (at most 128 per decode, bytes do not overflow): returns < 2, < 4, < 8;
@@ -239,7 +168,7 @@ auto rare_returns = [&](mask_t bits, u8v length) {{
     __builtin_memcpy(seen, &seen_bytes, N);
     for (; bits; bits &= bits - 1) {{
         const int k = __builtin_ctz(bits);
-        if (seen[k]) acc.counts.c[{BINS - 1} - __builtin_clzll(age_extra[k] + l[k])] += 1;
+        if (seen[k]) *wp::address(acc.arrays.counts, {BINS - 1} - __builtin_clzll(age_extra[k] + l[k])) += 1;
         age_extra[k] = 0;
     }}
 }};
@@ -251,7 +180,8 @@ auto rare_flights = [&](mask_t bits, u8v length, u8v code) {{
     for (; bits; bits &= bits - 1) {{
         const int k = __builtin_ctz(bits);
         const int histogram = c[k] < 4 ? {BINS} : {2 * BINS};
-        if (c[k] != 0) acc.counts.c[histogram + {BINS - 1} - __builtin_clzll(flen_extra[k] + l[k])] += 1;
+        const int bin = histogram + {BINS - 1} - __builtin_clzll(flen_extra[k] + l[k]);
+        if (c[k] != 0) *wp::address(acc.arrays.counts, bin) += 1;
         flen_extra[k] = 0;
     }}
 }};
@@ -290,12 +220,12 @@ auto gain_code = [](u8v top) {{ return (top & (u8v)1) | ((top >> 5) & (u8v)6); }
 (void)reverse8; (void)clz8; (void)lowest8; (void)ctz8; (void)popcount8; (void)gain_code;
 """
     + "int r0 = 0;\n"
-    + _BLOCK_CPU
+    + BLOCK_CPU
     + f"""
 for (int r = r0; r < rows; r++) {{
     u8v top;
-    __builtin_memcpy(&top, &acc.buffer.c[r * N], N);
-    const bv in_strip = __builtin_bit_cast(bv, (mask_t)acc.strip.c[r]);
+    __builtin_memcpy(&top, buffer + r * N, N);
+    const bv in_strip = __builtin_bit_cast(bv, (mask_t)strip[r]);
     const u8v gain = gain_code(top);
     /* returns: a visit closes the gap of age + 1 steps */
     age = age + one;
@@ -333,55 +263,58 @@ if ((long_age | long_flen) != 0) {{
 }}
 for (int i = 0; i < 9; i++) acc.tallies.c[i] += __builtin_reduce_add(__builtin_convertvector(t[i], u16v));
 visited_bytes = __builtin_convertvector(visited, u8v);
-__builtin_memcpy(&acc.visited, &visited_bytes, N);
-__builtin_memcpy(&acc.age, &age, N);
-__builtin_memcpy(&acc.fcode, &fcode, N);
-__builtin_memcpy(&acc.flen, &flen, N);
+__builtin_memcpy(trackers + N, &visited_bytes, N);
+__builtin_memcpy(trackers + 2 * N, &age, N);
+__builtin_memcpy(trackers + 3 * N, &fcode, N);
+__builtin_memcpy(trackers + 4 * N, &flen, N);
 acc.base += rows;
 acc.rows = 0;
 """
 )
 
-#: ``store`` after the last decode: the trackers back to the carry (absolute global steps; as loaded
-#: if the launch decoded nothing), the tallies into the histogram bins 0-2, and both into the arrays
-#: (the thread's histogram by one atomic add per non-empty bin). In C++: the same work in Warp
-#: copied the 1.5 KB histogram vector at every element it read (a few microseconds per thread and
-#: launch, a tenth of a launch of 300 steps).
-FINISH_CPU = f"""
+#: ``store`` after the last decode: the trackers back to the carry (absolute global steps; left as
+#: loaded if the thread decoded nothing) and the tallies into the histogram bins 0-2. The rare
+#: events went straight into the launch's histogram array (plain adds, as Warp's CPU atomics:
+#: a CPU launch runs its threads one after the other).
+FINISH_CPU = (
+    _TYPES
+    + f"""
 const int N = {INTERLEAVE};
-long long last_visit[N], flight_gain[N], flight_start[N];
-__builtin_memcpy(last_visit, &acc.last_visit, sizeof(last_visit));
-__builtin_memcpy(flight_gain, &acc.flight_gain, sizeof(flight_gain));
-__builtin_memcpy(flight_start, &acc.flight_start, sizeof(flight_start));
+const unsigned char* const trackers = acc.arrays.scratch.data + {_TRACKERS};
+const long long* const age_extra = (const long long*)(acc.arrays.scratch.data + {_EXTRA});
+const long long* const flen_extra = age_extra + N;
 if (acc.ready) {{
-    for (int k = 0; k < N; k++) {{
-        last_visit[k] = acc.visited.c[k] ? acc.base - (acc.age_extra.c[k] + acc.age.c[k]) : -1;
-        const long long code = acc.fcode.c[k]; /* gain codes 0, 1, 2, 5, 6 for 0, 1, 2, -1, -2 */
-        flight_gain[k] = code >= 4 ? 4 - code : code;
-        flight_start[k] = acc.base - (acc.flen_extra.c[k] + acc.flen.c[k]) + 1;
-    }}
-}}
-for (int k = 0; k < N; k++) {{
-    const int i = first + k * spacing;
-    if (i < n) {{
-        *wp::address(arrays.last_visit, i) = last_visit[k];
-        *wp::address(arrays.flight_gain, i) = flight_gain[k];
-        *wp::address(arrays.flight_start, i) = flight_start[k];
+    u8v bytes[5];
+    i64v a_extra, l_extra;
+    __builtin_memcpy(bytes, trackers, 5 * N);
+    __builtin_memcpy(&a_extra, age_extra, sizeof(i64v));
+    __builtin_memcpy(&l_extra, flen_extra, sizeof(i64v));
+    i64v wide[5]; /* valid, visited, age, fcode, flen */
+    for (int j = 1; j < 5; j++) wide[j] = __builtin_convertvector(bytes[j], i64v);
+    const i64v last_visit = wide[1] != 0 ? acc.base - (a_extra + wide[2]) : -1;
+    const i64v flight_gain = wide[3] >= 4 ? 4 - wide[3] : wide[3]; /* codes 0, 1, 2, 5, 6: 0..2, -1, -2 */
+    const i64v flight_start = acc.base - (l_extra + wide[4]) + 1;
+    if (WHOLE(acc)) {{
+        __builtin_memcpy(wp::address(acc.arrays.last_visit, acc.first), &last_visit, sizeof(i64v));
+        __builtin_memcpy(wp::address(acc.arrays.flight_gain, acc.first), &flight_gain, sizeof(i64v));
+        __builtin_memcpy(wp::address(acc.arrays.flight_start, acc.first), &flight_start, sizeof(i64v));
+    }} else {{
+        for (int k = 0; k < acc.lanes; k++) {{
+            const int i = acc.first + k * acc.spacing;
+            *wp::address(acc.arrays.last_visit, i) = last_visit[k];
+            *wp::address(acc.arrays.flight_gain, i) = flight_gain[k];
+            *wp::address(acc.arrays.flight_start, i) = flight_start[k];
+        }}
     }}
 }}
 /* the cumulative tallies of lengths < 2, < 4, < 8 give bins 0, 1, 2 (DECODE_CPU) */
-long long c[{3 * BINS}];
-__builtin_memcpy(c, &acc.counts, sizeof(c));
 const long long* t = acc.tallies.c;
-c[0] += t[0];
-c[1] += t[1] - t[0];
-c[2] += t[2] - t[1];
-c[{BINS}] += t[6];
-c[{BINS + 1}] += t[7] - t[6];
-c[{BINS + 2}] += t[8] - t[7];
-c[{2 * BINS}] += t[3] - t[6];
-c[{2 * BINS + 1}] += (t[4] - t[3]) - (t[7] - t[6]);
-c[{2 * BINS + 2}] += (t[5] - t[4]) - (t[8] - t[7]);
-for (int b = 0; b < {3 * BINS}; b++)
-    if (c[b] != 0) wp::atomic_add(wp::address(arrays.counts, b), c[b]);
+const long long c[9] = {{
+    t[0], t[1] - t[0], t[2] - t[1],
+    t[6], t[7] - t[6], t[8] - t[7],
+    t[3] - t[6], (t[4] - t[3]) - (t[7] - t[6]), (t[5] - t[4]) - (t[8] - t[7])}};
+for (int h = 0; h < 3; h++)
+    for (int b = 0; b < 3; b++)
+        if (c[3 * h + b] != 0) *wp::address(acc.arrays.counts, h * {BINS} + b) += c[3 * h + b];
 """
+)

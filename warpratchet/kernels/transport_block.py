@@ -1,0 +1,121 @@
+"""The transport CPU hooks' block decoding: 8 buffered rows at once, where the CPU has AVX-512 and GFNI.
+
+A C++ snippet, :data:`BLOCK_CPU`, inserted into :data:`~.transport_cpu.DECODE_CPU` before its row
+by row loop (it uses that snippet's trackers, tallies and helpers): each full block of 8 rows is
+transposed into bit planes (one byte per lane, bit i = row i), and its visits to B and gain
+changes are found with bit tricks on the planes. Without AVX-512 and GFNI it compiles to nothing
+and every row goes through the loop. The counts are the loop's (``tests/test_transport.py``).
+"""
+
+__all__ = ["BLOCK_CPU"]
+
+
+def _indices(values) -> str:
+    return ", ".join(str(v) for v in values)
+
+
+# Block decoding (a full block of 8 rows, AVX-512 with GFNI): the 8 x 32 codes become bit planes
+# (byte l of plane b: bit i = bit b of lane l's code at row i), in three byte shuffles and two
+# rounds of GF2P8AFFINEQB, which transposes the 8 x 8 bit matrix in each 64-bit word (with the
+# word as the matrix operand, byte p holding matrix row 7 - p). Stage 1: per (row, octet of
+# lanes) word, byte b = bit b of the octet's codes (bit i = lane 7 - i of the octet). Stage 2:
+# gather for each (plane, octet) the 8 rows' bytes, row 7 - p at byte p. Stage 3: transpose again:
+# byte k of word (plane b, octet j) = lane 8 j + 7 - k over the rows. Stage 4: lanes in order.
+_STAGE2 = [
+    ((7 - p) * 4 + j) * 8 + b for b in (0, 6, 7) for j in range(4) for p in range(8)
+]  # output byte (b * 4 + j) * 8 + p: the gain code's planes are bits 0, 6, 7 of the top bytes
+# the in_strip plane from the rows' masks (bits reversed: byte j of a row = its octet j)
+_STAGE2 += [128 + (7 - p) * 4 + j for j in range(4) for p in range(8)]
+_STAGE4 = [[(b * 4 + lane // 8) * 8 + 7 - lane % 8 for lane in range(32)] for b in range(4)]
+
+#: The block decoding (module docstring), for 32 lanes.
+BLOCK_CPU = f"""
+#if defined(__GFNI__) && defined(__AVX512BW__)
+for (; r0 + 8 <= rows; r0 += 8) {{
+    typedef char i8x64 __attribute__((vector_size(64)));
+    typedef unsigned char u8x64 __attribute__((ext_vector_type(64)));
+    typedef unsigned char u8x128 __attribute__((ext_vector_type(128)));
+    typedef long long i64x8 __attribute__((vector_size(64)));
+    const long long T = 0x8040201008040201LL; /* byte j = 1 << j: the transpose */
+    const i64x8 transpose = {{T, T, T, T, T, T, T, T}};
+    u8x64 rows01, rows23, rows45, rows67;
+    __builtin_memcpy(&rows01, buffer + r0 * N + 0, 64);
+    __builtin_memcpy(&rows23, buffer + r0 * N + 64, 64);
+    __builtin_memcpy(&rows45, buffer + r0 * N + 128, 64);
+    __builtin_memcpy(&rows67, buffer + r0 * N + 192, 64);
+#define GF_T(v) ((u8x64)__builtin_ia32_vgf2p8affineqb_v64qi((i8x64)transpose, (i8x64)(v), 0))
+    const u8x64 s01 = GF_T(rows01), s23 = GF_T(rows23), s45 = GF_T(rows45), s67 = GF_T(rows67);
+    u8x64 strip_rows = 0;
+    __builtin_memcpy(&strip_rows, strip + r0, 32);
+    /* x = the masks' bytes, matrix T: bit i of each byte becomes bit 7 - i */
+    const u8x64 strip_reversed =
+        (u8x64)__builtin_ia32_vgf2p8affineqb_v64qi((i8x64)strip_rows, (i8x64)transpose, 0);
+    const u8x128 lo = __builtin_shufflevector(s01, s23, {_indices(range(128))});
+    const u8x128 hi = __builtin_shufflevector(s45, s67, {_indices(range(128))});
+    const u8x128 gain_planes = __builtin_shufflevector(lo, hi, {_indices(_STAGE2[:96] + [0] * 32)});
+    const u8x128 strip_planes =
+        __builtin_shufflevector(strip_reversed, strip_reversed, {_indices(range(128))});
+    const u8x128 gathered =
+        __builtin_shufflevector(gain_planes, strip_planes, {_indices(list(range(96)) + _STAGE2[96:])});
+    const u8x64 g01 = __builtin_shufflevector(gathered, gathered, {_indices(range(64))});
+    const u8x64 g23 = __builtin_shufflevector(gathered, gathered, {_indices(range(64, 128))});
+    const u8x64 t01 = GF_T(g01), t23 = GF_T(g23);
+#undef GF_T
+    const u8x128 planes = __builtin_shufflevector(t01, t23, {_indices(range(128))});
+    const u8v G0 = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[0])});
+    const u8v G1 = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[1])});
+    const u8v G2 = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[2])});
+    const u8v I = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[3])});
+    const u8v zero = 0;
+    const u8v valid_mask = valid_bytes * (u8v)0xFF;
+    /* -- returns: V, bit i = a visit at row i -- */
+    const u8v V = I & valid_mask;
+    const bv has = __builtin_convertvector(V != zero, bv);
+    const u8v f = ctz8(V);
+    const u8v gap0 = age + f + one;
+    const bv r8 = tally_returns(has & visited, gap0);
+    rare_returns(__builtin_bit_cast(mask_t, has & ~r8), gap0);
+    /* the visits after the first: gaps of 1 to 7 steps, from the rows before them */
+    const u8v later = V & (V - one);
+    const u8v before1 = V << 1, before2 = V << 2, before3 = V << 3; /* a visit 1, 2, 3 rows before */
+    const u8v ge2 = later & ~before1;
+    const u8v ge4 = ge2 & ~before2 & ~before3;
+    const u8v all = popcount8(later);
+    t[0] += all - popcount8(ge2);
+    t[1] += all - popcount8(ge4);
+    t[2] += all;
+    age = has ? clz8(V) : age + eight;
+    visited = visited | has;
+    /* -- flights: bit i of B = the gain code changes at row i (row 0 against the block before) -- */
+    const u8v p0 = fcode & one, p1 = (fcode >> 1) & one, p2 = fcode >> 2;
+    const u8v B = (G0 ^ ((G0 + G0) | p0)) | (G1 ^ ((G1 + G1) | p1)) | (G2 ^ ((G2 + G2) | p2));
+    const u8v up_rows = ~G2 & (G1 | G0), down_rows = G2;
+    const u8v fb = ctz8(B);
+    const bv ends = __builtin_convertvector(B != zero, bv) & valid;
+    const u8v length0 = flen + fb;
+    const bv moving = ends & __builtin_convertvector(fcode != 0, bv);
+    const bv up0 = moving & __builtin_convertvector(fcode < four, bv);
+    const bv c8 = tally_flights(moving, up0, length0);
+    rare_flights(__builtin_bit_cast(mask_t, ends & ~c8), length0, fcode);
+    /* runs that start at a boundary and end at the next one within the block (the last carries) */
+    const u8v last_boundary = reverse8(lowest8(reverse8(B)));
+    const u8v starts = (B ^ last_boundary) & valid_mask;
+    const u8v C = ~B;
+    const u8v e2 = C >> 1, e4 = e2 & (C >> 2) & (C >> 3);
+    const u8v up_starts = starts & up_rows, down_starts = starts & down_rows;
+    const u8v n_up = popcount8(up_starts), n_down = popcount8(down_starts);
+    const u8v up2 = popcount8(up_starts & e2), up4 = popcount8(up_starts & e4);
+    const u8v down2 = popcount8(down_starts & e2), down4 = popcount8(down_starts & e4);
+    t[3] += (n_up - up2) + (n_down - down2);
+    t[4] += (n_up - up4) + (n_down - down4);
+    t[5] += n_up + n_down;
+    t[6] += n_up - up2;
+    t[7] += n_up - up4;
+    t[8] += n_up;
+    flen = ends ? clz8(B) + one : flen + eight;
+    u8v last_row;
+    __builtin_memcpy(&last_row, buffer + (r0 + 7) * N, N);
+    fcode = gain_code(last_row);
+}}
+#endif
+"""
