@@ -60,7 +60,7 @@ def test_last_row_is_the_end_summary_bit_for_bit():
         s.lyapunov,
         s.chaotic_fraction,
     )
-    assert last == history_row(ens.state(), ens.step)
+    assert last == history_row(ens.state(), summarize(ens.state(), ens.step))
     assert history.rows["step"] == history_steps(0, 3000)
     # var(p_n - p_0) over all points, directly from the momentum
     dp = ens.momentum() - ens.array("p0")

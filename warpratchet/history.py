@@ -54,7 +54,7 @@ import numpy as np
 
 from .ensemble import STATE_FIELDS
 from .errors import check_choice, check_count, check_optional, check_real
-from .observables import THRESHOLD_RULES, lyapunov, lyapunov_threshold, summarize
+from .observables import THRESHOLD_RULES, Summary, lyapunov, lyapunov_threshold, summarize
 from .runloop import Observer
 from .verdict import Assessment, assess
 
@@ -168,30 +168,18 @@ def _variance(state: Mapping[str, np.ndarray]) -> float:
     return squares / (n - 1)
 
 
-def history_row(
-    state: Mapping[str, np.ndarray],
-    step: int,
-    threshold: float | None = None,
-    rule: str = "strict",
-    ftle: np.ndarray | None = None,
-) -> dict[str, Any]:
-    """One history row (:data:`HISTORY_FIELDS`) of a state at global ``step``.
+def history_row(state: Mapping[str, np.ndarray], summary: Summary) -> dict[str, Any]:
+    """One history row (:data:`HISTORY_FIELDS`) of a state and its summary.
 
     Parameters
     ----------
     state : dict of ndarray, shape (points,) each
         The ensemble's state arrays (zero-copy views are fine: nothing is written).
-    step : int
-        Global step of the state, ``>= 1``.
-    threshold : float, optional
-        Chaos threshold on the FTLE (default: :func:`~warpratchet.observables.lyapunov_threshold`
-        of ``rule``).
-    rule : str
-        ``"strict"`` or ``"positive"`` (:data:`~warpratchet.observables.THRESHOLD_RULES`).
-    ftle : ndarray, shape (points,), optional
-        The FTLE of ``state`` at ``step``, if already computed (:func:`~warpratchet.observables.summarize`).
+    summary : Summary
+        :func:`~warpratchet.observables.summarize` of ``state`` at its global step (``>= 1``),
+        with the run's threshold or rule: the row's first six fields are the summary's.
     """
-    summary = summarize(dict(state), step, threshold, rule, ftle)
+    step = summary.step
     n_c = summary.chaotic_points
     # Var(p_n - p_0) over the chaotic points is n^2 Var(A_n) = n^2 N_c A_stderr^2: no second pass
     # over the FTLE (the costly part of a summary).
@@ -346,7 +334,8 @@ class History(Observer):
             # an ensemble that computed its FTLE at this chunk end already (a transport run's spread
             # row) lends it: the same values, not computed twice
             known = getattr(ensemble, "known_ftle", None)
-            row = history_row(views, step, self.threshold, self.rule, known(step) if known else None)
+            summary = summarize(views, step, self.threshold, self.rule, known(step) if known else None)
+            row = history_row(views, summary)
             for name in HISTORY_FIELDS:
                 self.rows[name].append(row[name])
         if block_due:

@@ -69,9 +69,10 @@ def sink_min_chunk_steps(ensemble: Ensemble) -> int:
     :data:`ROW_IO_SECONDS` of HDF5 work; a chunk costs ``points * chunk_steps`` kernel
     point-steps on ``ensemble.threads`` threads. Both speeds are measured on one thread, once per
     process, kind of ensemble, device and map (:func:`_seconds_per_point`, ~5 ms on a copy of up
-    to 4096 of the ensemble's points; the kernel's time is then shared by the threads), so the chunk follows the kernel: a 3x faster kernel gets
-    3x longer default chunks instead of a 3x larger archive overhead. Rounded up to 1, 2 or 5
-    times a power of ten. The ensemble is not advanced.
+    to 4096 of the ensemble's points; the kernel's time is then shared by the threads), so the
+    chunk follows the kernel: a 3x faster kernel gets 3x longer default chunks instead of a 3x
+    larger archive overhead. Rounded up to 1, 2 or 5 times a power of ten. The ensemble is not
+    advanced.
     """
     summary, kernel = _seconds_per_point(ensemble)
     threads = max(1, min(ensemble.threads, ensemble.points))
