@@ -54,7 +54,7 @@ import numpy as np
 
 from .ensemble import STATE_FIELDS
 from .errors import check_choice, check_count, check_optional, check_real
-from .observables import THRESHOLD_RULES, Summary, lyapunov, lyapunov_threshold, summarize
+from .observables import THRESHOLD_RULES, Summary, lyapunov, lyapunov_threshold, momentum_gain, summarize
 from .runloop import Observer
 from .verdict import Assessment, assess
 
@@ -148,22 +148,16 @@ def block_subsample(points: int, seed: int | None, size: int = BLOCK_POINTS) -> 
     return np.sort(rng.choice(points, size=m, replace=False)).astype(np.int64)
 
 
-def _gain(state: Mapping[str, np.ndarray]) -> np.ndarray:
-    """``p_n - p_0`` exactly as ``A_n * n`` is formed in observables.acceleration."""
-    p0 = state["p0"]
-    return state["winding"] + (state["q"] - (p0 - np.floor(p0)))
-
-
 def _variance(state: Mapping[str, np.ndarray]) -> float:
     """Variance (ddof 1) of ``p_n - p_0`` over all points, in two passes over chunks of points."""
     n = len(state["p0"])
     if n < 2:
         return math.nan
     parts = [{k: state[k][lo : lo + _CHUNK] for k in ("winding", "q", "p0")} for lo in range(0, n, _CHUNK)]
-    mean = math.fsum(float(np.add.reduce(_gain(part))) for part in parts) / n
+    mean = math.fsum(float(np.add.reduce(momentum_gain(part))) for part in parts) / n
     squares = 0.0
     for part in parts:
-        d = _gain(part) - mean
+        d = momentum_gain(part) - mean
         squares += float(np.add.reduce(d * d))
     return squares / (n - 1)
 
@@ -342,7 +336,7 @@ class History(Observer):
             self._block_pending = [n for n in self._block_pending if n > step]
             sub = {name: views[name][self.block_indices] for name in STATE_FIELDS}
             self.block_rows["block_step"].append(int(step))
-            self.block_rows["block_gain"].append(_gain(sub))
+            self.block_rows["block_gain"].append(momentum_gain(sub))
             self.block_rows["block_ftle"].append(lyapunov(sub, step))
 
     def end(self, ensemble: Any) -> None:

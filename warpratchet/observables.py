@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -16,6 +17,7 @@ import numpy as np
 from .errors import NonFiniteStateError, check_count, check_optional, check_real
 
 __all__ = [
+    "momentum_gain",
     "acceleration",
     "lyapunov",
     "THRESHOLD_RULES",
@@ -52,16 +54,23 @@ class UnreliableWarning(UserWarning):
     """A summary whose A cannot be vouched for (too short a run, too few chaotic points)."""
 
 
-def acceleration(state: dict[str, np.ndarray], step: int) -> np.ndarray:
-    """Per-point mean acceleration ``A_n = (p_n - p_0)/n`` of Eq. (An), shape ``(points,)``.
+def momentum_gain(state: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Per-point momentum gained since step 0, ``p_n - p_0``, shape ``(points,)``.
 
-    Computed as ``(winding + q - frac(p0)) / n``: every term is exact or a fraction in
-    ``[0, 1)``, so no digits are lost however far the momentum has run.
+    Computed as ``winding + (q - frac(p0))``: every term is exact or a fraction in ``[0, 1)``, so
+    no digits are lost however far the momentum has run. History rows, block gains and transport's
+    spread rows take it from here, so they match ``A_n * n`` bit for bit.
     """
+    p0 = state["p0"]
+    return state["winding"] + (state["q"] - (p0 - np.floor(p0)))
+
+
+def acceleration(state: dict[str, np.ndarray], step: int) -> np.ndarray:
+    """Per-point mean acceleration ``A_n = (p_n - p_0)/n`` of Eq. (An), shape ``(points,)``:
+    :func:`momentum_gain` over ``n``."""
     if step <= 0:
         raise ValueError(f"step = {step!r}: A_n needs at least one iteration")
-    p0 = state["p0"]
-    return (state["winding"] + (state["q"] - (p0 - np.floor(p0)))) / step
+    return momentum_gain(state) / step
 
 
 def lyapunov(state: dict[str, np.ndarray], step: int) -> np.ndarray:

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..history import log_steps
-from ..observables import default_lyapunov_threshold, lyapunov
+from ..observables import default_lyapunov_threshold, lyapunov, momentum_gain
 from ..runloop import Observer
 from .fits import GROUPS
 
@@ -56,10 +56,7 @@ def _chaotic_gains(
     if ftle is not None:
         ftle[lo:hi] = exponents
     chaotic = np.greater(exponents, limit, out=mask[lo:hi])
-    p0 = part["p0"]
-    # p_n - p_0 exactly as A_n * n is formed in observables.acceleration: winding + (q - frac p0).
-    gain = part["winding"] + (part["q"] - (p0 - np.floor(p0)))
-    np.copyto(gains[lo:hi], gain, where=chaotic)
+    np.copyto(gains[lo:hi], momentum_gain(part), where=chaotic)
 
 
 def _squares(gains: np.ndarray, mask: np.ndarray, mean: np.ndarray, out: np.ndarray, lo: int, hi: int):
