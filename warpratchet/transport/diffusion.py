@@ -60,7 +60,8 @@ def _chaotic_gains(
 
 
 def _squares(gains: np.ndarray, mask: np.ndarray, mean: np.ndarray, out: np.ndarray, lo: int, hi: int):
-    """Rows ``lo <= r < hi`` of ``out`` (+0.0 before): ``(gain - group mean)^2`` of the chaotic points."""
+    """Rows ``lo <= r < hi`` of ``out``: ``(gain - group mean)^2`` of the chaotic points, the others
+    left alone (``out`` may be ``gains`` itself: its other points are +0.0)."""
     np.copyto(out[lo:hi], (gains[lo:hi] - mean) ** 2, where=mask[lo:hi])
 
 
@@ -107,9 +108,10 @@ def spread_moments(
     count = np.add.reduce(mask, axis=0, dtype=np.int64).astype(np.float64)
     total = np.add.reduce(gains, axis=0)
     mean = np.divide(total, count, out=np.zeros(groups), where=count > 0)
-    squares = np.zeros_like(gains)
-    each(_squares, gains, mask, mean, squares)
-    return np.stack([count, mean, np.add.reduce(squares, axis=0)], axis=1)
+    # the squares overwrite the chaotic points' gains in place (the others stay +0.0): no second
+    # array of the ensemble's size
+    each(_squares, gains, mask, mean, gains)
+    return np.stack([count, mean, np.add.reduce(gains, axis=0)], axis=1)
 
 
 class Spread(Observer):
