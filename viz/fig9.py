@@ -19,7 +19,7 @@ from warpratchet.params import MapParams
 from .checks import CheckedRow, rises, robust_stderr
 from .sections import fixed, general, settings_line
 
-__all__ = ["fig9_section", "ENSEMBLES_COMMAND"]
+__all__ = ["fig9_section", "ENSEMBLES_COMMAND", "path_ends", "deviation"]
 
 #: How the JSON of the ensemble comparison is made (the report reads it from the sweeps folder).
 ENSEMBLES_COMMAND = "python scripts/fig9_ensembles.py --json > {dir}/fig9_ensembles.json"
@@ -36,11 +36,12 @@ _SHOWN = (
 _ENDS = ("0.005", "0.14")  # the keys of the two ends in the JSON
 
 
-def _dev(value: float, target: float) -> str:
+def deviation(value: float, target: float) -> str:
+    """``value`` against ``target`` in percent, signed (``"+0.28 %"``)."""
     return f"{100 * (value / target - 1):+.2f} %"
 
 
-def _ends(rows: list[dict[str, Any]]) -> list[tuple[dict[str, Any], float]]:
+def path_ends(rows: list[dict[str, Any]]) -> list[tuple[dict[str, Any], float]]:
     """The sweep rows at both ends of the path, with the caption's sigma there."""
     ordered = sorted(rows, key=lambda r: r["b2"])
     return [(ordered[0], paper.FIG9_SIGMA[0]), (ordered[-1], paper.FIG9_SIGMA[1])]
@@ -226,8 +227,8 @@ def fig9_section(
 ) -> list[str]:
     """The Markdown of the Fig. 9 section (``ensembles``: the JSON of ``scripts/fig9_ensembles.py``)."""
     paper_rows, strip_rows = checked["fig9_paper"], checked["fig9"]
-    (low, sig_lo), (high, sig_hi) = _ends(sweeps["fig9_paper"])
-    (slow, _), (shigh, _) = _ends(sweeps["fig9"])
+    (low, sig_lo), (high, sig_hi) = path_ends(sweeps["fig9_paper"])
+    (slow, _), (shigh, _) = path_ends(sweeps["fig9"])
     se = [r["lyapunov_std"] / math.sqrt(r["chaotic_points"]) for r in (low, high)]
     ens = paper.FIG9_ENSEMBLE
     out = [
@@ -241,12 +242,12 @@ def fig9_section(
         f"`init={ens['init']!r}, threshold_rule={ens['threshold_rule']!r}`; `warpratchet run --init torus "
         "--threshold-rule positive`), reproduces the caption's range at both ends: "
         f"**sigma = {low['lyapunov']:.4f} ± {se[0]:.4f} at b2 = {low['b2']:.3f}** "
-        f"({_dev(low['lyapunov'], sig_lo)} "
+        f"({deviation(low['lyapunov'], sig_lo)} "
         f"from {sig_lo}) and **sigma = {high['lyapunov']:.4f} ± {se[1]:.4f} at b2 = {high['b2']:.3f}** "
-        f"({_dev(high['lyapunov'], sig_hi)} from {sig_hi}), with {low['chaotic_points']} and "
+        f"({deviation(high['lyapunov'], sig_hi)} from {sig_hi}), with {low['chaotic_points']} and "
         f"{high['chaotic_points']} of the {low['points']} points chaotic. The strip B of Figs. 7-8 gives "
-        f"{slow['lyapunov']:.4f} and {shigh['lyapunov']:.4f} ({_dev(slow['lyapunov'], sig_lo)}, "
-        f"{_dev(shigh['lyapunov'], sig_hi)}).",
+        f"{slow['lyapunov']:.4f} and {shigh['lyapunov']:.4f} ({deviation(slow['lyapunov'], sig_lo)}, "
+        f"{deviation(shigh['lyapunov'], sig_hi)}).",
         "",
     ]
     if ensembles is None:

@@ -47,7 +47,7 @@ from .checks import (
 from .command import command_name, run
 from .differences import differences_section
 from .eq_ae import eq_ae_section
-from .fig9 import fig9_section
+from .fig9 import deviation, fig9_section, path_ends
 from .sections import limits_section, lyapunov_section, settings_line, table
 
 __all__ = [
@@ -230,17 +230,15 @@ def _drift_summary(k3: list[CheckedRow], fig9_paper: list[CheckedRow], fig9_stri
 
 
 def _fig9_summary(sweeps: dict[str, list[dict[str, Any]]]) -> str:
-    rows = sorted(sweeps["fig9_paper"], key=lambda r: r["b2"])
-    strip = sorted(sweeps["fig9"], key=lambda r: r["b2"])
-    lo, hi = paper.FIG9_SIGMA
+    (low, lo), (high, hi) = path_ends(sweeps["fig9_paper"])  # the ends of the path, the caption's sigma
+    (strip_low, _), (strip_high, _) = path_ends(sweeps["fig9"])
     return (
         f"- Fig. 9's Lyapunov range ({lo} < sigma < {hi}) is the paper's own ensemble's: initial conditions "
         f"uniform on the torus, chaotic when the FTLE exceeds (1 + ln n)/n, give sigma = "
-        f"{rows[0]['lyapunov']:.4f} at b2 = {rows[0]['b2']:.3f} "
-        f"({100 * (rows[0]['lyapunov'] / lo - 1):+.2f} %) "
-        f"and {rows[-1]['lyapunov']:.4f} at b2 = {rows[-1]['b2']:.3f} "
-        f"({100 * (rows[-1]['lyapunov'] / hi - 1):+.2f} %); the strip B of Figs. 7-8 gives "
-        f"{strip[0]['lyapunov']:.4f} and {strip[-1]['lyapunov']:.4f}. A depends on the ensemble (Fig. 9 "
+        f"{low['lyapunov']:.4f} at b2 = {low['b2']:.3f} ({deviation(low['lyapunov'], lo)}) "
+        f"and {high['lyapunov']:.4f} at b2 = {high['b2']:.3f} ({deviation(high['lyapunov'], hi)}); "
+        f"the strip B of Figs. 7-8 gives {strip_low['lyapunov']:.4f} and {strip_high['lyapunov']:.4f}. "
+        "A depends on the ensemble (Fig. 9 "
         "section)."
     )
 

@@ -180,9 +180,10 @@ def fig9(ctx: Context) -> None:
     fine, fine_sigma = _dense_along_path(b2, sigma)
     ax.plot(fine_sigma, [closed(v) for v in fine], label="Eq. (Ab) at $K=3$", **SOLID)
     strip_b2, strip_a = _columns(strip_rows, "b2", "A")
+    strip_sigma = np.interp(strip_b2, b2, sigma)
     _numeric_points(
         ax,
-        np.interp(strip_b2, b2, sigma),
+        strip_sigma,
         strip_a,
         _error(strip_rows),
         r"strip B (FTLE $>10(1+\ln n)/n$), at the same $b_2$",
@@ -194,7 +195,6 @@ def fig9(ctx: Context) -> None:
         ax, sigma, a, _error(paper_rows), rf"torus, FTLE $>(1+\ln n)/n$ (the paper's), $K={path.K}$"
     )
     # Points whose A_n still drifts between n/2 and n, either ensemble (their verdict).
-    strip_sigma = np.interp(strip_b2, b2, sigma)
     cross_x, cross_y = [], []
     for rows, x, y in ((paper_rows, sigma, a), (strip_rows, strip_sigma, strip_a)):
         drifting = [r["verdict"] == "drifting" for r in sorted(rows, key=lambda r: r["b2"])]
