@@ -156,7 +156,7 @@ bv visited = __builtin_convertvector(visited_bytes, bv);
    flight ends < 2, < 4, < 8; positive ones < 2, < 4, < 8 */
 u8v t[9];
 for (int i = 0; i < 9; i++) t[i] = 0;
-const u8v one = 1, two = 2, four = 4, eight = 8, seven = 7;
+const u8v one = 1, two = 2, four = 4, eight = 8;
 /* Runs of 8 steps or more, one by one: a visit to B closes a gap of extra + length steps (counted
    if the point had visited B before; a first visit only resets the tracker); a run of another
    gain code ends a run of extra + length steps (counted if it gained). */
