@@ -27,6 +27,36 @@ def test_summary_is_summarize_of_the_state():
     assert ens.summary(threshold=0.05) == summarize(ens.state(), ens.step, 0.05)
 
 
+def test_a_summary_is_computed_once_per_step_for_every_sink(tmp_path, monkeypatch, capsys):
+    """``run --out --json``: the history's row, the archive's series row and the report at one step
+    share one summary (one per step and threshold), and each equals ``summarize`` of the state."""
+    import json
+
+    from support import run_argv
+
+    import warpratchet.ensemble
+    from warpratchet.cli import main as cli_main
+
+    calls = []
+
+    def spy(state, step, threshold=None, rule="strict", ftle=None):
+        calls.append((step, threshold, rule))
+        return summarize(state, step, threshold, rule, ftle)
+
+    monkeypatch.setattr(warpratchet.ensemble, "summarize", spy)
+    argv = run_argv("--points", "500", "--steps", "800", "--json", "--quiet", "--out", str(tmp_path / "a.h5"))
+    assert cli_main([*argv, "--threshold-rule", "positive"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert calls and len(calls) == len(set(calls)) and calls[-1] == (800, None, "positive")
+    with open_archive(tmp_path / "a.h5") as arc:
+        series, state = arc.series, arc.checkpoint()[0]
+    assert series["step"][-1] == 800 and series["A"][-1] == report["A"] == report["history"]["A"][-1]
+    assert summarize(state, 800, None, "positive").A == report["A"]
+    ens = Ensemble.sample(PARAMS, 500, seed=2).run(100)
+    assert ens.summary(0.05, warn=False) is ens.summary(0.05, warn=False)  # cached, not recomputed
+    assert ens.summary(0.05, warn=False) is not ens.run(1).summary(0.05, warn=False)  # until it moves
+
+
 def test_to_pandas_is_one_row_per_summary_and_stacks():
     pd = pytest.importorskip("pandas", reason="pandas is optional (Summary.to_pandas)")
     ens = Ensemble.sample(PARAMS, 3000, seed=2)

@@ -26,7 +26,7 @@ import numpy as np
 import warp as wp
 
 from . import kernels
-from .errors import ParameterError, check_choice, check_count
+from .errors import ParameterError, check_choice, check_count, check_optional, check_real
 from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from .limits import MAX_POINTS, MAX_STEP, check_kernel_range, check_memory, format_bytes
 from .observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, Summary, summarize
@@ -34,7 +34,7 @@ from .params import MapParams
 from .runloop import Observer, archive_sink, check_observers, default_chunk_steps, default_threads, run_chunks
 from .sampling import _BUILD_CHUNK, grid_nodes, sample_grid, sample_strip, sample_torus, sampled_chunks
 from .spec import MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS
-from .state import STATE_FIELDS, check_state
+from .state import STATE_FIELDS, check_initial, check_state, initial_state
 
 __all__ = [
     "STATE_FIELDS",
@@ -89,18 +89,7 @@ class Ensemble:
     ) -> None:
         # _chunks (internal, from sample): (n, iterable of (lo, x, p)) instead of x0 and p0.
         if _chunks is None:
-            x0 = np.asarray(x0, dtype=np.float64)
-            p0 = np.asarray(p0, dtype=np.float64)
-            if x0.ndim != 1 or x0.shape != p0.shape:
-                raise ValueError(
-                    f"x0 and p0 must be 1-D arrays of equal length; got shapes {x0.shape}, {p0.shape}"
-                )
-            if x0.size == 0:
-                raise ValueError("an ensemble needs at least 1 point; got 0")
-            if not (np.all(np.isfinite(x0)) and np.all(np.isfinite(p0))):
-                raise ValueError("x0 and p0 must be finite")
-            if np.any(np.abs(p0) >= 2.0**52):
-                raise ValueError("|p0| must be below 2^52 so that p0 mod 1 is exact")
+            x0, p0 = check_initial(x0, p0)
             step = _BUILD_CHUNK
             _chunks = (
                 x0.size,
@@ -113,19 +102,8 @@ class Ensemble:
 
     def _fill(self, lo: int, x0: np.ndarray, p0: np.ndarray) -> None:
         """The initial state of points ``lo, lo + 1, ...`` from their positions and momenta."""
-        x = np.mod(x0, 1.0)
-        x[x >= 1.0] = 0.0  # mod of a tiny negative number rounds to 1
-        initial = {
-            "x": x,
-            "q": p0 - np.floor(p0),
-            "winding": 0,
-            "p0": p0,
-            "dx": 1.0,
-            "dp": 0.0,
-            "log_stretch": 0.0,
-        }
-        for name, values in initial.items():
-            self._put(name, lo, values, x.size)
+        for name, values in initial_state(x0, p0).items():
+            self._put(name, lo, values, x0.size)
 
     def _put(self, name: str, lo: int, values, count: int) -> None:
         """Write ``values`` (``count`` of them, or one scalar for all) into ``name[lo : lo + count]``.
@@ -165,6 +143,7 @@ class Ensemble:
             for name in STATE_FIELDS
         }
         self.points = points
+        self._summaries: dict[tuple, Summary] = {}  # (step, threshold, rule): summary at this step
 
     @classmethod
     def bytes_per_point(cls) -> int:
@@ -261,6 +240,11 @@ class Ensemble:
         """
         return self._arrays[name].numpy()
 
+    def views(self) -> dict[str, np.ndarray]:
+        """Every state field as :meth:`array` gives it (keys :data:`STATE_FIELDS`): zero-copy on the
+        CPU, for reading the state where it lies; valid until the next run."""
+        return {name: self.array(name) for name in STATE_FIELDS}
+
     def state(self) -> dict[str, np.ndarray]:
         """A copy of every state field (keys :data:`STATE_FIELDS`)."""
         return {name: np.array(self.array(name), copy=True) for name in STATE_FIELDS}
@@ -286,6 +270,7 @@ class Ensemble:
         )
 
     def _advance(self, steps: int, pool: ThreadPoolExecutor | None) -> None:
+        self._summaries = {}  # the state moves on
         # One launch advances at most MAX_LAUNCH_STEPS (its loop counter is 32-bit): a longer
         # chunk is split, so that no step is dropped.
         while steps > 0:
@@ -374,17 +359,34 @@ class Ensemble:
                 sink.close()
         return self
 
-    def summary(self, threshold: float | None = None) -> Summary:
+    def known_ftle(self, step: int) -> np.ndarray | None:
+        """Every point's FTLE at ``step`` if the ensemble computed it already at its current step
+        (for another observable), else None: :meth:`summary` takes it instead of computing it again.
+        A plain ensemble never has it (:class:`~warpratchet.transport.TransportEnsemble` does)."""
+        return None
+
+    def summary(self, threshold: float | None = None, rule: str = "strict", *, warn: bool = True) -> Summary:
         """:func:`~warpratchet.observables.summarize` of the current state: A, FTLE, chaotic fraction.
+
+        ``threshold`` (or, when it is None, ``rule``) as ``summarize`` takes them. Computed once per
+        step and threshold: the history's row, the archive's series row and the run's report at
+        the same step share it (bitwise the same Summary; a summary of 10^6 points is ~50 ms).
 
         Warns with :class:`~warpratchet.observables.UnreliableWarning` when the run is too short,
         or has too few chaotic points, to estimate A (``Summary.reliable`` is False; ``reason``
-        says why).
+        says why); ``warn=False`` leaves that to the caller (sinks, which report it themselves).
         """
         if self.undefined is not None:
             raise ValueError(f"this ensemble has no summary: {self.undefined}")
-        result = summarize({name: self.array(name) for name in STATE_FIELDS}, self.step, threshold)
-        result.warn()
+        threshold = check_optional(check_real, "threshold", threshold, 0.0)
+        key = (self.step, threshold, rule if threshold is None else None)
+        result = self._summaries.get(key)
+        if result is None:
+            ftle = self.known_ftle(self.step)
+            result = summarize(self.views(), self.step, threshold, rule, ftle)
+            self._summaries[key] = result
+        if warn:
+            result.warn()
         return result
 
     def __repr__(self) -> str:

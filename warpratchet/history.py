@@ -54,7 +54,7 @@ import numpy as np
 
 from .ensemble import STATE_FIELDS
 from .errors import check_choice, check_count, check_optional, check_real
-from .observables import THRESHOLD_RULES, Summary, lyapunov, lyapunov_threshold, momentum_gain, summarize
+from .observables import THRESHOLD_RULES, Summary, lyapunov, lyapunov_threshold, momentum_gain
 from .runloop import Observer
 from .verdict import Assessment, assess
 
@@ -322,14 +322,11 @@ class History(Observer):
         block_due = step in self._block_pending
         if not (row_due or block_due):
             return  # a regular chunk end between two history steps, or a step already recorded
-        views = {name: ensemble.array(name) for name in STATE_FIELDS}  # zero-copy on the CPU
+        views = ensemble.views()  # zero-copy on the CPU
         if row_due:
             self._pending = [n for n in self._pending if n > step]
-            # an ensemble that computed its FTLE at this chunk end already (a transport run's spread
-            # row) lends it: the same values, not computed twice
-            known = getattr(ensemble, "known_ftle", None)
-            summary = summarize(views, step, self.threshold, self.rule, known(step) if known else None)
-            row = history_row(views, summary)
+            # the ensemble's summary at this step: computed once for every sink that needs it
+            row = history_row(views, ensemble.summary(self.threshold, self.rule, warn=False))
             for name in HISTORY_FIELDS:
                 self.rows[name].append(row[name])
         if block_due:

@@ -43,7 +43,6 @@ from .._files import (
 from ..ensemble import STATE_FIELDS, Ensemble, Observer
 from ..errors import check_count, check_optional, check_real
 from ..history import History
-from ..observables import summarize
 from ..spec import check_setting
 from . import layout
 from . import transport as _transport
@@ -145,7 +144,7 @@ class ArchiveSink(Observer):
         with as_archive_error():
             exists = check_new_path(path, force=force, hint=" (use force=True / --force)")
         chunk_steps, checkpoint_every = sink_schedule(ensemble, chunk_steps, snapshot_every, checkpoint_every)
-        initial = {name: ensemble.array(name) for name in STATE_FIELDS}
+        initial = ensemble.views()
         bad = nonfinite(initial)
         if bad:
             raise NonFiniteStateError(
@@ -292,10 +291,9 @@ class ArchiveSink(Observer):
     def after_chunk(self, ensemble: Ensemble, seconds: float) -> None:
         step = ensemble.step
         f = self._file
-        live = {name: ensemble.array(name) for name in STATE_FIELDS}  # zero-copy on the CPU
         with self._writing():
             try:
-                summary = summarize(live, step, self.threshold, self.threshold_rule).as_dict()
+                summary = ensemble.summary(self.threshold, self.threshold_rule, warn=False).as_dict()
             except FloatingPointError as exc:
                 raise NonFiniteStateError(
                     f"{self.path}: the state at step {step} is not finite ({exc}); not archived: "
@@ -314,7 +312,7 @@ class ArchiveSink(Observer):
                 ensure_space(self.path, new_bytes, "the next rows")
             self._series.put({name: clocks.get(name, summary.get(name)) for name in SERIES_FIELDS})
             if snap:
-                self._snapshots.put(snapshot_row(live, self._indices, step))
+                self._snapshots.put(snapshot_row(ensemble.views(), self._indices, step))
             for group in self._groups:
                 group.put()
             f.flush()  # rows on disk before the counters that make them valid

@@ -12,7 +12,7 @@ import warnings
 
 from ..spec import LEGACY_NAMES
 from .common import ProgressBar, UsageError, print_warnings, spec_flag, spec_flags
-from .run import history_report, print_report, resolved_threshold, run_report
+from .run import history_report, print_report, run_report
 
 #: Settings that may be given to check them against the archive.
 CHECKED = ("K", "b1", "b2", "points", "seed", "init")
@@ -81,8 +81,7 @@ def command(args: argparse.Namespace) -> int:
     finally:
         sink.close()
     seconds = time.perf_counter() - start
-    threshold = resolved_threshold(sink.threshold, sink.threshold_rule, ensemble.step)
-    report = run_report(ensemble, seconds, args.steps - first, threshold)
+    report = run_report(ensemble, seconds, args.steps - first, sink.threshold, sink.threshold_rule)
     report.update(history_report(history, sink.threshold_rule))
     report["archive"] = args.archive
     print_report(report, args.json)

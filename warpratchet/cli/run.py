@@ -40,16 +40,15 @@ def add(sub) -> None:
     add_rerun_flags(p)
 
 
-def run_report(ensemble, seconds: float, steps_run: int, threshold: float | None) -> dict[str, Any]:
+def run_report(
+    ensemble, seconds: float, steps_run: int, threshold: float | None, threshold_rule: str
+) -> dict[str, Any]:
     """The JSON object of ``run`` and ``resume``: parameters, A, FTLE statistics, speed."""
     from .. import theory
     from ..archive.transport import counts_transport
-    from ..ensemble import STATE_FIELDS
-    from ..observables import summarize
 
-    # Views, not a copy of the state (zero-copy on the CPU): the summary only reads it, in chunks.
-    views = {name: ensemble.array(name) for name in STATE_FIELDS}
-    summary = summarize(views, ensemble.step, threshold).as_dict()
+    # The summary the run's history (and archive) computed at this step already, not a new one.
+    summary = ensemble.summary(threshold, threshold_rule, warn=False).as_dict()
     del summary["step"]  # the report's "steps" is the ensemble's step
     # A, A_stderr, lyapunov (+ _std, _min), chaotic_fraction, chaotic_points, threshold, and
     # whether A can be trusted: reliable, reason, classification_bound (observables.reliability)
@@ -128,13 +127,6 @@ def history_report(history, threshold_rule: str) -> dict[str, Any]:
     }
 
 
-def resolved_threshold(threshold: float | None, rule: str, step: int) -> float | None:
-    """The threshold ``run_report`` needs: the given one, or the rule's value at ``step`` (None: strict)."""
-    from ..observables import lyapunov_threshold
-
-    return threshold if threshold is not None or rule == "strict" else lyapunov_threshold(step, rule)
-
-
 def _archive(args: argparse.Namespace, spec: RunSpec, plan: dict[str, Any], history):
     """``(sink, ensemble, history)``: a new archive of a sampled ensemble (keeping ``history``), or
     the archive resumed (same run) with the history it keeps."""
@@ -181,6 +173,7 @@ def _sample(args: argparse.Namespace, spec: RunSpec):
         spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
     )
     ensemble.threshold = spec.threshold
+    ensemble.threshold_rule = spec.threshold_rule
     return ensemble
 
 
@@ -223,8 +216,7 @@ def command(args: argparse.Namespace) -> int:
         if sink is not None:
             sink.close()
     seconds = time.perf_counter() - start
-    threshold = resolved_threshold(spec.threshold, spec.threshold_rule, ensemble.step)
-    report = run_report(ensemble, seconds, spec.steps - first, threshold)
+    report = run_report(ensemble, seconds, spec.steps - first, spec.threshold, spec.threshold_rule)
     report.update(history_report(history, spec.threshold_rule))
     if plan is not None:
         report["archive"] = args.out

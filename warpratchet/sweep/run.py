@@ -30,7 +30,6 @@ from ..ensemble import Ensemble
 from ..errors import ParameterError, check_count
 from ..history import History
 from ..limits import kernel_range_error
-from ..observables import summarize
 from ..params import MapParams
 from ..progress import ProgressBar
 from ..spec import SweepSpec, check_setting
@@ -98,7 +97,7 @@ def run_point(
     start = time.perf_counter()
     try:
         ensemble.run(run.steps, [history])
-        s = summarize(ensemble.state(), ensemble.step, run.threshold, run.threshold_rule)
+        s = ensemble.summary(run.threshold, run.threshold_rule, warn=False)  # the history's last row's
     except FloatingPointError as exc:
         raise ValueError(
             f"sweep point {index} (K={params.K!r}, b1={params.b1!r}, b2={params.b2!r}): {exc}"

@@ -59,8 +59,11 @@ class TransportEnsemble(Ensemble):
     """
 
     _kernel = advance_map_transport
-    #: Chaos threshold on the FTLE for the spread's chaotic points (None: the default per step).
+    #: Chaos threshold on the FTLE for the spread's chaotic points (None: ``threshold_rule``'s
+    #: value at each step), set to the run's so that the spread's points are its History's.
     threshold: float | None = None
+    #: Rule of the threshold when ``threshold`` is None (:func:`~warpratchet.observables.lyapunov_threshold`).
+    threshold_rule: str = "strict"
     _known_ftle: tuple[int, np.ndarray] | None = None  # (step, FTLE) of the last spread row
 
     def __init__(self, params: MapParams, x0, p0, **kwargs) -> None:
@@ -120,8 +123,8 @@ class TransportEnsemble(Ensemble):
     def known_ftle(self, step: int) -> np.ndarray | None:
         """Every point's FTLE at ``step`` if this chunk end's spread row computed it, else None.
 
-        :class:`~warpratchet.history.History` takes it for its row at the same step (the costly
-        part of a row, ~10 ms per 10^6 points) instead of computing the same values again.
+        :meth:`summary` (a History row at the same step) takes it instead of computing the same
+        values again (the costly part of a summary, ~20 ms per 10^6 points).
         """
         known = self._known_ftle
         return known[1] if known is not None and known[0] == step == self.step else None
