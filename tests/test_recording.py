@@ -231,10 +231,13 @@ def test_subsample_is_fixed_and_capped(tmp_path):
         ens.run(10, [sink])
 
 
-def test_cli_run_writes_a_recording(tmp_path, capsys):
+@pytest.mark.parametrize("rule", ["strict", "positive"])
+def test_cli_run_writes_a_recording(tmp_path, capsys, rule):
+    """The recording's series end at the report's numbers, exactly, under either threshold rule
+    (the recording classifies by the run's rule, not always the strict one)."""
     path = tmp_path / "run.rrd"
     argv = run_argv("--points", "2000", "--steps", "600", "--rerun", str(path), "--rerun-every", "150",
-                    "--rerun-points", "400", "--quiet", "--json")  # fmt: skip
+                    "--rerun-points", "400", "--quiet", "--json", "--threshold-rule", rule)  # fmt: skip
     assert cli_main(argv) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["recording"] == str(path)

@@ -106,3 +106,20 @@ def test_docs_match_a_transport_archive(tmp_path):
     assert {name for name in documented if name.startswith("/transport")} >= {"/transport/b/spread"}
     assert documented - written <= _documented_optional(), "documented but not written"
     assert written - documented == set(), "written but not documented"
+
+
+def test_mu_counts_the_chaotic_points_of_the_runs_threshold_rule(tmp_path):
+    """``--threshold-rule positive`` classifies the spread's points as History does, also after a
+    resume from the archive (the spread used to take the strict rule whatever the run's)."""
+    args = (*MAP_FLAGS, "--points", "2000", "--quiet", "--json", "--transport")
+    args = (*args, "--threshold-rule", "positive")
+    whole = json.loads(cli("run", *args, "--steps", "3000").stdout)["transport"]
+    path = str(tmp_path / "t.h5")
+    assert cli("run", *args, "--steps", "1500", "--out", path).returncode == 0
+    resumed = json.loads(cli("run", *args, "--steps", "3000", "--out", path).stdout)["transport"]
+    mu = {}
+    for rule in ("strict", "positive"):
+        ens = TransportEnsemble.sample(MapParams(3.0, 0.1, 0.01), 2000, "strip", 0)
+        ens.threshold_rule = rule
+        mu[rule] = ens.run(3000).diffusion().mu
+    assert whole["mu"] == resumed["mu"] == mu["positive"] != mu["strict"]

@@ -126,11 +126,14 @@ def test_diffusion_fit_without_rows_or_groups_says_why():
     )
 
 
-def test_the_spread_of_a_transport_run_is_historys_variance():
-    """V(n) pooled from the groups equals History's var_dp_chaotic at the steps both record."""
+@pytest.mark.parametrize("rule", ["strict", "positive"])
+def test_the_spread_of_a_transport_run_is_historys_variance(rule):
+    """V(n) pooled from the groups equals History's var_dp_chaotic at the steps both record, with
+    the chaotic points of the same threshold rule (rounding apart: two summation orders)."""
     p = MapParams(3.0, 0.1, 0.01)
-    history = History()
+    history = History(rule=rule)
     ens = TransportEnsemble.sample(p, 3000, "strip", seed=1)
+    ens.threshold_rule = rule
     ens.run(3000, [history])
     steps, var = ens.spread()
     rows = dict(zip(history.rows["step"], history.rows["var_dp_chaotic"], strict=True))
@@ -174,7 +177,7 @@ def test_history_rows_beside_spread_rows_are_a_plain_runs_bit_for_bit(monkeypatc
         lent.append((step, ftle is not None))
         return summarize(state, step, threshold, rule, ftle)
 
-    monkeypatch.setattr("warpratchet.history.summarize", spy)
+    monkeypatch.setattr("warpratchet.ensemble.summarize", spy)  # Ensemble.summary's
     rows = []
     for cls in (Ensemble, TransportEnsemble):
         lent.clear()

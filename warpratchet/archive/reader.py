@@ -250,7 +250,10 @@ class Archive:
         kwargs = {"device": device, "threads": threads, "sampler": init, "seed": seed}
         if _transport.FEATURE not in self.features:
             return Ensemble.from_state(self.params, state, step, **kwargs)
-        return _transport.restore(self.params, state, step, transport, self.settings["threshold"], **kwargs)
+        settings = self.settings
+        return _transport.restore(
+            self.params, state, step, transport, settings["threshold"], settings["threshold_rule"], **kwargs
+        )
 
     def ensemble(self, threads: int | None = None, device: str | None = None) -> Ensemble:
         """An :class:`Ensemble` restored bit for bit at the newest good checkpoint."""

@@ -178,13 +178,20 @@ def read_rows(f: h5py.File, path: str) -> dict[str, np.ndarray]:
 
 
 def restore(
-    params: Any, state: dict[str, np.ndarray], step: int, transport: Any, threshold: Any, **kwargs: Any
+    params: Any,
+    state: dict[str, np.ndarray],
+    step: int,
+    transport: Any,
+    threshold: Any,
+    threshold_rule: str = "strict",
+    **kwargs: Any,
 ):
     """A :class:`~warpratchet.transport.TransportEnsemble` holding ``state`` at ``step``, counting
     on from ``transport`` (a ``TransportState``; None: counting starts at ``step``), with the
-    run's chaos ``threshold``; ``kwargs`` as :meth:`Ensemble.from_state`."""
+    run's chaos ``threshold`` and ``threshold_rule``; ``kwargs`` as :meth:`Ensemble.from_state`."""
     from ..transport import TransportEnsemble
 
     ensemble = TransportEnsemble.from_state(params, state, step, transport=transport, **kwargs)
     ensemble.threshold = threshold
+    ensemble.threshold_rule = threshold_rule
     return ensemble

@@ -214,6 +214,7 @@ def rerun_sink(args: argparse.Namespace, spec: RunSpec):
             max_bytes=int(args.rerun_max_mb * 1e6) if args.rerun_max_mb else DEFAULT_MAX_BYTES,
             color_by=args.rerun_color or "ftle",
             threshold=spec.threshold,
+            threshold_rule=spec.threshold_rule,
         )
     except ImportError as exc:  # rerun-sdk is an optional extra
         raise UsageError(str(exc)) from None

@@ -18,9 +18,9 @@ from typing import Any, Literal
 
 import numpy as np
 
-from ..ensemble import STATE_FIELDS, Ensemble, Observer
-from ..errors import check_choice, check_count, check_optional
-from ..observables import Summary, acceleration, default_lyapunov_threshold, lyapunov, summarize
+from ..ensemble import Ensemble, Observer
+from ..errors import check_choice, check_count, check_optional, check_real
+from ..observables import THRESHOLD_RULES, Summary, acceleration, lyapunov, lyapunov_threshold
 from .plan import (
     DEFAULT_MAX_BYTES,
     DEFAULT_MAX_FRAMES,
@@ -41,6 +41,8 @@ __all__ = ["DEFAULT_MAX_POINTS", "DEFAULT_MAX_FRAMES", "DEFAULT_MAX_BYTES", "fra
 _SERIES_BUDGET = 0.02
 #: Seconds per ensemble point of one summary (FTLE, A_n, mask; benchmarks/recording_overhead.py).
 _SUMMARY_SECONDS_PER_POINT = 35e-9
+#: How the recording's info panel states a threshold rule (:data:`~warpratchet.observables.THRESHOLD_RULES`).
+_RULE_TEXT = {"strict": "10 (1 + ln n)/n", "positive": "(1 + ln n)/n"}
 
 
 class RecordingSink(Observer):
@@ -68,8 +70,10 @@ class RecordingSink(Observer):
     color_by : {"ftle", "class"}
         See :class:`PhaseSpaceRecording`.
     threshold : float, optional
-        Chaos threshold for the summary and the classes (default
-        :func:`~warpratchet.observables.default_lyapunov_threshold`).
+        Chaos threshold for the summary and the classes (default: the value of ``threshold_rule``
+        at each step, :func:`~warpratchet.observables.lyapunov_threshold`).
+    threshold_rule : {"strict", "positive"}
+        Rule of the threshold when ``threshold`` is None: the run's (``--threshold-rule``).
     seed : int
         Seed of the subsample.
     **options
@@ -97,6 +101,7 @@ class RecordingSink(Observer):
         max_bytes: int = DEFAULT_MAX_BYTES,
         color_by: Literal["ftle", "class"] = "ftle",
         threshold: float | None = None,
+        threshold_rule: str = "strict",
         seed: int = 0,
         **options: Any,
     ) -> None:
@@ -111,7 +116,8 @@ class RecordingSink(Observer):
         require_rerun()
         self.path = path
         self.spawn = spawn
-        self.threshold = threshold
+        self.threshold = check_optional(check_real, "threshold", threshold, low=0.0)
+        self.threshold_rule = check_choice("threshold_rule", threshold_rule, tuple(THRESHOLD_RULES))
         self.seed = seed
         self.options = options
         self.summaries: list[Summary] = []
@@ -151,7 +157,7 @@ class RecordingSink(Observer):
         info = {
             "points": f"{n} ({ensemble.sampler}, seed {ensemble.seed})",
             "recorded points": f"{len(self.indices)} (fixed subsample, seed {self.seed})",
-            "chaos threshold": "10 (1 + ln n)/n" if self.threshold is None else self.threshold,
+            "chaos threshold": _RULE_TEXT[self.threshold_rule] if self.threshold is None else self.threshold,
         }
         info.update(self.options.pop("info", {}) or {})
         self.recording = PhaseSpaceRecording(
@@ -176,7 +182,7 @@ class RecordingSink(Observer):
         assert self.recording is not None and self.indices is not None
         step = ensemble.step
         # Zero-copy views on the CPU; only the subsample and the summary are computed from them.
-        state = {name: ensemble.array(name) for name in STATE_FIELDS}
+        state = ensemble.views()
         whole = len(self.indices) == ensemble.points
         sub = state if whole else {k: v[self.indices] for k, v in state.items()}
         if step == 0:
@@ -184,13 +190,16 @@ class RecordingSink(Observer):
             return
         ftle = lyapunov(sub, step)
         acc = acceleration(sub, step) if self.color_by == "class" else None
-        threshold = self.threshold if self.threshold is not None else default_lyapunov_threshold(step)
+        threshold = self.threshold
+        if threshold is None:
+            threshold = lyapunov_threshold(step, self.threshold_rule)
         self.recording.log_cloud(step, sub["x"], sub["q"], ftle, acc, threshold)
-        self._log_summary(state, step)
+        self._log_summary(ensemble)
 
-    def _log_summary(self, state: dict[str, np.ndarray], step: int) -> None:
+    def _log_summary(self, ensemble: Ensemble) -> None:
         assert self.recording is not None
-        summary = summarize(state, step, self.threshold)
+        step = ensemble.step
+        summary = ensemble.summary(self.threshold, self.threshold_rule, warn=False)
         self.recording.log_summary(step, summary.as_dict())
         self.summaries.append(summary)
         self._last_row = step
@@ -245,7 +254,7 @@ class RecordingSink(Observer):
         ):
             # A row of the time series between frames: A_n settling, at a cost under 2%.
             self.open(ensemble)
-            self._log_summary({name: ensemble.array(name) for name in STATE_FIELDS}, step)
+            self._log_summary(ensemble)
             self._rows_between += 1
 
     def end(self, ensemble: Ensemble) -> None:

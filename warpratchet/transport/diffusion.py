@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..history import log_steps
-from ..observables import default_lyapunov_threshold, lyapunov, momentum_gain
+from ..observables import lyapunov, lyapunov_threshold, momentum_gain
 from ..runloop import Observer
 from .fits import GROUPS
 
@@ -69,6 +69,7 @@ def spread_moments(
     state: dict[str, np.ndarray],
     step: int,
     threshold: float | None = None,
+    rule: str = "strict",
     groups: int = GROUPS,
     pool: Executor | None = None,
     ftle: np.ndarray | None = None,
@@ -86,7 +87,7 @@ def spread_moments(
     ``ftle``: an array of shape ``(points,)`` that receives every point's FTLE on the way (a
     History row at the same step takes it instead of computing it again).
     """
-    limit = default_lyapunov_threshold(step) if threshold is None else threshold
+    limit = lyapunov_threshold(step, rule) if threshold is None else threshold
     n = len(state["p0"])
     rows = -(-n // groups)
     gains = np.zeros((rows, groups))  # the padding past n: +0.0, not chaotic
@@ -140,7 +141,9 @@ class Spread(Observer):
             self._pending = [n for n in self._pending if n > step]
             views = {name: ensemble.array(name) for name in _FIELDS}
             ftle = np.empty(len(views["p0"]))
-            moments = spread_moments(views, step, ensemble.threshold, pool=self._pool, ftle=ftle)
+            moments = spread_moments(
+                views, step, ensemble.threshold, ensemble.threshold_rule, pool=self._pool, ftle=ftle
+            )
             ensemble.record_spread(step, moments, ftle)
 
     def end(self, ensemble: Any) -> None:
