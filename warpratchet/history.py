@@ -54,7 +54,7 @@ import numpy as np
 
 from .ensemble import STATE_FIELDS
 from .errors import check_choice, check_count, check_optional, check_real
-from .observables import THRESHOLD_RULES, Summary, lyapunov, lyapunov_threshold, momentum_gain
+from .observables import SUMMARY_CHUNK, THRESHOLD_RULES, Summary, chaotic_mask, lyapunov, momentum_gain
 from .runloop import Observer
 from .verdict import Assessment, assess
 
@@ -96,8 +96,6 @@ BLOCKS = 64
 BLOCK_POINTS = 4096
 #: Salt of the subsample's generator, so that it differs from the sampler's and the snapshots'.
 _BLOCK_SALT = 0xB10C
-#: Points reduced at a time for ``var_dp_all``: temporaries of a few MB for any ensemble.
-_CHUNK = 1 << 20
 
 
 def log_steps(first: int, target: int, per_decade: int = PER_DECADE) -> list[int]:
@@ -149,15 +147,19 @@ def block_subsample(points: int, seed: int | None, size: int = BLOCK_POINTS) -> 
 
 
 def _variance(state: Mapping[str, np.ndarray]) -> float:
-    """Variance (ddof 1) of ``p_n - p_0`` over all points, in two passes over chunks of points."""
+    """Variance (ddof 1) of ``p_n - p_0`` over all points, in two passes over chunks of
+    :data:`~warpratchet.observables.SUMMARY_CHUNK` points (temporaries of a few MB for any
+    ensemble; one chunk keeps its gains for the second pass instead of computing them again)."""
     n = len(state["p0"])
     if n < 2:
         return math.nan
-    parts = [{k: state[k][lo : lo + _CHUNK] for k in ("winding", "q", "p0")} for lo in range(0, n, _CHUNK)]
-    mean = math.fsum(float(np.add.reduce(momentum_gain(part))) for part in parts) / n
+    fields = ("winding", "q", "p0")
+    parts = [{k: state[k][lo : lo + SUMMARY_CHUNK] for k in fields} for lo in range(0, n, SUMMARY_CHUNK)]
+    kept = momentum_gain(parts[0]) if len(parts) == 1 else None
+    mean = math.fsum(float(np.add.reduce(momentum_gain(p) if kept is None else kept)) for p in parts) / n
     squares = 0.0
     for part in parts:
-        d = momentum_gain(part) - mean
+        d = (momentum_gain(part) if kept is None else kept) - mean
         squares += float(np.add.reduce(d * d))
     return squares / (n - 1)
 
@@ -363,8 +365,7 @@ class History(Observer):
             )
         cumulative = np.array([self.block_rows["block_gain"][where[s]] for s in wanted])
         ftle = self.block_rows["block_ftle"][where[n]]
-        limit = lyapunov_threshold(n, self.rule) if self.threshold is None else self.threshold
-        chaotic = ftle > limit
+        chaotic = chaotic_mask(ftle, n, self.threshold, self.rule)
         gains = np.diff(np.vstack([np.zeros(cumulative.shape[1]), cumulative]), axis=0)
         return gains[:, chaotic], ""
 
