@@ -19,7 +19,13 @@ from support import run_argv
 
 from warpratchet import Ensemble, MapParams, theory
 from warpratchet.cli import main as cli_main
-from warpratchet.observables import acceleration, default_lyapunov_threshold, lyapunov, summarize
+from warpratchet.observables import (
+    acceleration,
+    default_lyapunov_threshold,
+    lyapunov,
+    lyapunov_threshold,
+    summarize,
+)
 from warpratchet.recording import (
     CLASSES,
     RERUN_MISSING,
@@ -252,13 +258,15 @@ def test_cli_run_writes_a_recording(tmp_path, capsys, rule):
 
 
 # -- replay of an archive ---------------------------------------------------------------------------
-def test_replay_of_an_archive_equals_its_snapshots_and_series(tmp_path, capsys):
+@pytest.mark.parametrize("rule", ["strict", "positive"])
+def test_replay_of_an_archive_equals_its_snapshots_and_series(tmp_path, capsys, rule):
+    """The replay shows the archive's snapshots and series, its classes by the run's threshold rule."""
     from viz.record import main as record_main
     from warpratchet.archive import open_archive
 
     h5, rrd_path = tmp_path / "run.h5", tmp_path / "run.rrd"
     argv = run_argv("--points", "1500", "--steps", "400", "--out", str(h5), "--snapshot-every", "100",
-                    "--snapshot-points", "300", "--quiet")  # fmt: skip
+                    "--snapshot-points", "300", "--quiet", "--threshold-rule", rule)  # fmt: skip
     assert cli_main(argv) == 0
     assert record_main([str(h5), "-o", str(rrd_path)]) == 0
     assert "4 frames" in capsys.readouterr().out
@@ -286,9 +294,10 @@ def test_replay_of_an_archive_equals_its_snapshots_and_series(tmp_path, capsys):
     rrd_class = tmp_path / "class.rrd"
     assert record_main([str(h5), "-o", str(rrd_class), "--color", "class", "--trail"]) == 0
     frames = cloud_frames(read_rrd(rrd_class))
-    np.testing.assert_array_equal(
-        frames[400]["class_ids"], class_ids(snaps.ftle[-1], snaps.A[-1], default_lyapunov_threshold(400))
-    )
+    expected = class_ids(snaps.ftle[-1], snaps.A[-1], lyapunov_threshold(400, rule))
+    np.testing.assert_array_equal(frames[400]["class_ids"], expected)
+    other = "positive" if rule == "strict" else "strict"
+    assert np.any(expected != class_ids(snaps.ftle[-1], snaps.A[-1], lyapunov_threshold(400, other)))
     verify(rrd_class)
 
 

@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from warpratchet.observables import default_lyapunov_threshold
+from warpratchet.observables import lyapunov_threshold, rule_formula
 from warpratchet.recording import SERIES_KEYS, PhaseSpaceRecording
 
 from .command import command_name, run
@@ -49,11 +49,12 @@ def replay(
     snaps = archive.snapshots
     series = archive.series
     threshold = settings.get("threshold")
+    rule = settings.get("threshold_rule", "strict")  # the run's rule, when it gave no threshold
     info = {
         "archive": str(getattr(archive, "path", "")),
         "points": f"{settings.get('points')} ({settings.get('sampler')}, seed {settings.get('seed')})",
         "recorded points": f"{snaps.x.shape[1] if len(snaps) else 0} (the archive's snapshot subsample)",
-        "chaos threshold": "10 (1 + ln n)/n" if threshold is None else threshold,
+        "chaos threshold": rule_formula(rule) if threshold is None else threshold,
     }
     title = f"replay of {Path(str(getattr(archive, 'path', 'archive'))).name}"
     with PhaseSpaceRecording(
@@ -70,7 +71,7 @@ def replay(
                 snaps.p[s],
                 ftle=snaps.ftle[s],
                 acc=snaps.A[s],
-                threshold=default_lyapunov_threshold(step) if threshold is None else threshold,
+                threshold=lyapunov_threshold(step, rule) if threshold is None else threshold,
             )
         if len(series["step"]):
             rec.send_series(series["step"], {key: series[key] for key in SERIES_KEYS})

@@ -89,6 +89,12 @@ def lyapunov(state: dict[str, np.ndarray], step: int) -> np.ndarray:
 THRESHOLD_RULES = {"strict": 10.0, "positive": 1.0}
 
 
+def rule_formula(rule: str) -> str:
+    """A rule's threshold as a formula of ``n``: ``"10 (1 + ln n)/n"``, ``"(1 + ln n)/n"``."""
+    factor = THRESHOLD_RULES[rule]
+    return "(1 + ln n)/n" if factor == 1.0 else f"{factor:g} (1 + ln n)/n"
+
+
 def lyapunov_threshold(step: int, rule: str = "strict") -> float:
     """Chaos threshold on the FTLE after ``step`` iterations by a named rule: ``factor (1 + ln n)/n``.
 

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..ensemble import Ensemble, Observer
 from ..errors import check_choice, check_count, check_optional, check_real
-from ..observables import THRESHOLD_RULES, Summary, acceleration, lyapunov, lyapunov_threshold
+from ..observables import THRESHOLD_RULES, Summary, acceleration, lyapunov, lyapunov_threshold, rule_formula
 from .plan import (
     DEFAULT_MAX_BYTES,
     DEFAULT_MAX_FRAMES,
@@ -41,8 +41,6 @@ __all__ = ["DEFAULT_MAX_POINTS", "DEFAULT_MAX_FRAMES", "DEFAULT_MAX_BYTES", "fra
 _SERIES_BUDGET = 0.02
 #: Seconds per ensemble point of one summary (FTLE, A_n, mask; benchmarks/recording_overhead.py).
 _SUMMARY_SECONDS_PER_POINT = 35e-9
-#: How the recording's info panel states a threshold rule (:data:`~warpratchet.observables.THRESHOLD_RULES`).
-_RULE_TEXT = {"strict": "10 (1 + ln n)/n", "positive": "(1 + ln n)/n"}
 
 
 class RecordingSink(Observer):
@@ -154,10 +152,11 @@ class RecordingSink(Observer):
             # Sorted, so that gathering walks memory forwards.
             rng = np.random.default_rng(self.seed)
             self.indices = np.sort(rng.choice(n, size=m, replace=False))
+        rule = rule_formula(self.threshold_rule)
         info = {
             "points": f"{n} ({ensemble.sampler}, seed {ensemble.seed})",
             "recorded points": f"{len(self.indices)} (fixed subsample, seed {self.seed})",
-            "chaos threshold": _RULE_TEXT[self.threshold_rule] if self.threshold is None else self.threshold,
+            "chaos threshold": rule if self.threshold is None else self.threshold,
         }
         info.update(self.options.pop("info", {}) or {})
         self.recording = PhaseSpaceRecording(
