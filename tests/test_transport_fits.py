@@ -190,3 +190,26 @@ def test_history_rows_beside_spread_rows_are_a_plain_runs_bit_for_bit(monkeypatc
     assert rows[0].keys() == rows[1].keys()
     for name in rows[0]:
         assert np.asarray(rows[0][name]).tobytes() == np.asarray(rows[1][name]).tobytes(), name
+
+
+def test_bytes_per_point_count_the_carry_and_a_spread_rows_arrays():
+    """TransportEnsemble's memory check counts what grows with the points: state, carry and the
+    full-size arrays of a spread row (measured here with tracemalloc, which sees NumPy's)."""
+    import tracemalloc
+
+    from warpratchet.transport.diffusion import SPREAD_BYTES_PER_POINT
+
+    ens = TransportEnsemble.sample(MapParams(3.0, 0.1, 0.01), 10, threads=1)
+    carry = sum(a.numpy().itemsize for a in ens._extra_arrays())
+    assert TransportEnsemble.bytes_per_point() == 56 + carry + SPREAD_BYTES_PER_POINT == 97
+    n = 1 << 20
+    state = {name: np.zeros(n) for name in ("winding", "q", "p0", "dp", "log_stretch")}
+    state["dx"] = np.ones(n)
+    tracemalloc.start()
+    try:
+        ftle = np.empty(n)  # as the Spread observer lends it
+        spread_moments(state, 1000, ftle=ftle)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert SPREAD_BYTES_PER_POINT * n <= peak <= SPREAD_BYTES_PER_POINT * n + (8 << 20)

@@ -23,10 +23,13 @@ from ..observables import lyapunov, lyapunov_threshold, momentum_gain
 from ..runloop import Observer
 from .fits import GROUPS
 
-__all__ = ["SPREAD_PER_DECADE", "spread_steps", "spread_moments", "Spread"]
+__all__ = ["SPREAD_PER_DECADE", "SPREAD_BYTES_PER_POINT", "spread_steps", "spread_moments", "Spread"]
 
 #: Rows per decade of n.
 SPREAD_PER_DECADE = 8
+#: Bytes per point a spread row allocates for its time: every point's FTLE (float64, lent to the
+#: History row), gain (float64) and chaotic mask (bool); the blocks' temporaries are a few MB.
+SPREAD_BYTES_PER_POINT = 8 + 8 + 1
 #: Points per block of :func:`spread_moments` (its temporaries stay in the cache).
 _BLOCK = 1 << 16
 #: The state fields a row reads.

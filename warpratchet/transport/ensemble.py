@@ -27,7 +27,8 @@ from ..ensemble import Ensemble
 from ..kernels.transport import advance_map_transport
 from ..params import MapParams
 from ..runloop import Observer
-from .diffusion import Spread
+from ..state import STATE_FIELDS
+from .diffusion import SPREAD_BYTES_PER_POINT, Spread
 from .fits import GROUPS, DiffusionFit, diffusion_fit, pooled_variance
 from .histograms import BINS, CARRY_FIELDS, HISTOGRAMS, Histograms, open_runs
 from .twin import initial_carry
@@ -69,6 +70,13 @@ class TransportEnsemble(Ensemble):
     def __init__(self, params: MapParams, x0, p0, **kwargs) -> None:
         super().__init__(params, x0, p0, **kwargs)
         self._start_counting(None)
+
+    @classmethod
+    def bytes_per_point(cls) -> int:
+        """Memory per point: the state (56 B), the carry (:data:`CARRY_FIELDS`, int64, 24 B) and a
+        spread row's arrays (:data:`~.diffusion.SPREAD_BYTES_PER_POINT`, 17 B). The kernel's
+        histogram and scratch arrays are per launch, not per point."""
+        return 8 * len(STATE_FIELDS) + 8 * len(CARRY_FIELDS) + SPREAD_BYTES_PER_POINT
 
     def _start_counting(self, transport: TransportState | None) -> None:
         carry = (
