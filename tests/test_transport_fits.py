@@ -102,6 +102,27 @@ def test_diffusion_fit_recovers_mu_of_brownian_and_ballistic_spreading(velocity,
     assert (fit.first_step, fit.last_step, fit.rows, fit.groups) == (10**4, 10**6, 17, 16)
     assert abs(fit.mu - mu) < 3 * fit.stderr + (2e-3 if velocity else 0.0), fit  # ballistic: 1/(900 n) bias
     assert 0 < fit.stderr < 0.05
+    assert fit.reason is None and fit.chaotic_growth == 0.0  # one set of points throughout
+
+
+def test_diffusion_fit_flags_a_set_that_grows_faster_than_ballistic():
+    """Ballistic walkers (mu = 2 as one set) counted from the slowest 80% at n = 10^4 to all at
+    10^6, as a falling threshold admits the sticky orbits last: the slope exceeds 2 (by ~0.17:
+    the mean v^2 of the counted set grows ~2.2x), and the fit flags it and states the growth."""
+    steps = spread_steps(0, 10**6)
+    rng = np.random.default_rng(5)
+    values = _walks(rng, 4000, steps, 30.0)
+    speed = np.abs(values[-1])  # the fastest walkers are the last to be counted
+    index = np.arange(values.shape[1]) % 16
+    share = np.clip(0.8 + 0.1 * (np.log10(steps) - 4.0), 0.0, 1.0)
+    moments, var = [], []
+    for row, q in zip(values, share, strict=True):
+        counted = speed <= np.quantile(speed, q)
+        moments.append(group_moments(row[counted], index[counted], 16))
+        var.append(row[counted].var(ddof=1))
+    fit = diffusion_fit(steps, np.array(var), np.stack(moments, axis=1))
+    assert fit.mu - 2.0 > 4 * fit.stderr and "faster than ballistic" in fit.reason
+    assert fit.chaotic_growth == pytest.approx(0.2, abs=1e-3) and "20.0%" in fit.reason
 
 
 def test_diffusion_fit_errors_match_the_scatter_of_replicas():
@@ -213,3 +234,15 @@ def test_bytes_per_point_count_the_carry_and_a_spread_rows_arrays():
     finally:
         tracemalloc.stop()
     assert SPREAD_BYTES_PER_POINT * n <= peak <= SPREAD_BYTES_PER_POINT * n + (8 << 20)
+
+
+def test_a_transport_run_flags_mu_above_ballistic_and_not_a_diffusive_one():
+    """K = 2.99 (sticky islands) gives V(n) steeper than n^2 over n = 10^3..10^5 and is flagged;
+    K = 3 (no sticky islands, docs/transport.md) at the same b is diffusive and is not."""
+    fits = {}
+    for K in (3.0, 2.99):
+        ens = TransportEnsemble.sample(MapParams(K, 0.1361, 0.05), 10_000, "strip", seed=1)
+        fits[K] = ens.run(100_000).diffusion()
+    assert fits[3.0].reason is None and abs(fits[3.0].mu - 1.0) < 0.2
+    assert fits[2.99].mu - 2.0 > 3 * fits[2.99].stderr and "faster than ballistic" in fits[2.99].reason
+    assert 0.0 < fits[2.99].chaotic_growth < 0.1

@@ -109,7 +109,8 @@ def pooled_variance(moments: np.ndarray) -> float:
 # -- mu -----------------------------------------------------------------------------------------------
 @dataclass(frozen=True)
 class DiffusionFit:
-    """:func:`diffusion_fit`'s result. ``mu`` NaN (and ``reason`` set) when it cannot be fitted."""
+    """:func:`diffusion_fit`'s result. ``mu`` NaN (and ``reason`` set) when it cannot be fitted; a
+    finite ``mu`` with ``reason`` set is flagged (the reason says why it is no diffusion exponent)."""
 
     mu: float
     stderr: float
@@ -120,6 +121,10 @@ class DiffusionFit:
     groups: int
     method: str
     reason: str | None = None
+    #: ``1 - N_c(first row) / N_c(last row)``: how much the chaotic set grew over the fit range (the
+    #: FTLE threshold falls with n, so later rows count orbits the earlier ones left out); NaN
+    #: without groups.
+    chaotic_growth: float = math.nan
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -191,7 +196,20 @@ def diffusion_fit(
         leave_out.append(_slope(x, np.log(vg)))
     jack = np.array(leave_out)
     stderr = math.sqrt((groups - 1) / groups * float(((jack - jack.mean()) ** 2).sum()))
-    return DiffusionFit(mu, stderr, first, last, rows, groups, method)
+    counts = m[:, use, 0].sum(axis=0)
+    growth = float(1.0 - counts[0] / counts[-1])
+    reason = None
+    if mu - 2.0 > 2.0 * stderr:
+        # One set of orbits whose steps are bounded (|p_n - p_0| <= n K max|f|) spreads at most
+        # ballistically, V ~ n^2, in the long run; a steeper slope is a transient (orbits entering
+        # flights late, Delta p ~ v (n - tau)) or a set that changes with n.
+        reason = (
+            "mu > 2, faster than ballistic: no asymptotic diffusion exponent. Orbits still entering "
+            "long flights within the fit range (sticky ones, riding an island) steepen V(n), and so "
+            f"does the chaotic set, which grew by {growth:.1%} over the range as the FTLE threshold "
+            "fell; see docs/transport.md"
+        )
+    return DiffusionFit(mu, stderr, first, last, rows, groups, method, reason, growth)
 
 
 # -- tails ----------------------------------------------------------------------------------------------
