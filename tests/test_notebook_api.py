@@ -55,6 +55,8 @@ def test_a_summary_is_computed_once_per_step_for_every_sink(tmp_path, monkeypatc
     ens = Ensemble.sample(PARAMS, 500, seed=2).run(100)
     assert ens.summary(0.05, warn=False) is ens.summary(0.05, warn=False)  # cached, not recomputed
     assert ens.summary(0.05, warn=False) is not ens.run(1).summary(0.05, warn=False)  # until it moves
+    with pytest.raises(ValueError, match="read-only"):  # so nothing changes a kept summary's state
+        ens.array("x")[0] = 0.5
 
 
 def test_to_pandas_is_one_row_per_summary_and_stacks():

@@ -234,11 +234,14 @@ class Ensemble:
 
     # -- access -------------------------------------------------------------------------------
     def array(self, name: str) -> np.ndarray:
-        """One state field as a NumPy array, shape ``(points,)``.
+        """One state field as a NumPy array, shape ``(points,)``, read-only.
 
-        On the CPU this is a zero-copy view of the live state: copy it before the next run.
+        On the CPU a zero-copy view of the live state (copy it before the next run); read-only,
+        since only a run changes the state (:meth:`summary` keeps each step's; see :meth:`from_state`).
         """
-        return self._arrays[name].numpy()
+        values = self._arrays[name].numpy()
+        values.flags.writeable = False
+        return values
 
     def views(self) -> dict[str, np.ndarray]:
         """Every state field as :meth:`array` gives it (keys :data:`STATE_FIELDS`): zero-copy on the
