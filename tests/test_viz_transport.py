@@ -35,3 +35,12 @@ def test_orbit_portrait(tmp_path):
     args = ["--orbits", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--period", "1,3", "--background", "0"]
     assert main([*args, "-o", str(out)]) == 0 and out.stat().st_size > 5_000
     assert main(["--orbits", "--K", "3", "--period", "1", "-o", str(tmp_path / "x.png")]) == 2
+
+
+def test_a_flagged_mu_is_never_shown_bare():
+    from viz.transport import mu_label
+
+    assert mu_label({"mu": 1.0571, "mu_stderr": 0.0182, "mu_fit": {"reason": None}}) == "mu = 1.057 +- 0.018"
+    flagged = {"mu": 2.124, "mu_stderr": 0.019, "mu_fit": {"reason": "mu > 2, faster than ballistic. More."}}
+    assert mu_label(flagged) == "mu = 2.124 +- 0.019 (mu > 2, faster than ballistic)"
+    assert mu_label({"mu": float("nan"), "mu_fit": {"reason": "3 rows"}}) == "mu = n/a (3 rows)"

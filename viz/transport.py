@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -119,11 +120,20 @@ def distributions(plt, report: dict[str, Any], title: str):
         ax.set_ylabel("P(L) per unit length")
         ax.set_title(name, fontsize=10)
         ax.legend(fontsize=7)
-    mu = report.get("mu")
-    mu_text = "n/a" if mu is None else f"{mu:.3f} +- {report.get('mu_stderr') or float('nan'):.3f}"
-    fig.suptitle(f"{title}; diffusion exponent mu = {mu_text}", fontsize=9)
+    fig.suptitle(f"{title}; diffusion exponent {mu_label(report)}", fontsize=9)
     fig.tight_layout()
     return fig
+
+
+def mu_label(report: dict) -> str:
+    """``mu = value +- error`` of a ``"transport"`` report, with the first sentence of the fit's
+    reason when it flags the value (a flagged mu is never shown bare)."""
+    mu = report.get("mu")
+    reason = (report.get("mu_fit") or {}).get("reason")
+    if mu is None or math.isnan(mu):
+        return f"mu = n/a ({reason})" if reason else "mu = n/a"
+    text = f"mu = {mu:.3f} +- {report.get('mu_stderr') or float('nan'):.3f}"
+    return f"{text} ({reason.split('. ')[0].rstrip('.')})" if reason else text
 
 
 def _background(params: MapParams, points: int, steps: int, pixels: int) -> np.ndarray:
