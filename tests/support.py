@@ -13,6 +13,7 @@ import numpy as np
 
 from warpratchet import Observer
 from warpratchet.ensemble import STATE_FIELDS
+from warpratchet.history import BLOCK_FIELDS, HISTORY_FIELDS, History
 
 #: The CLI flags of the map most tests use, MapParams(3.0, 0.1, 0.01) (domain LR, Eq. Aa).
 MAP_FLAGS = ("--K", "3", "--b1", "0.1", "--b2", "0.01")
@@ -94,3 +95,34 @@ class Capture(Observer):
 def same_state(a: dict, b: dict) -> bool:
     """Two ensemble states equal bit for bit in every field of ``STATE_FIELDS``."""
     return all(np.array_equal(a[k], b[k]) for k in STATE_FIELDS)
+
+
+def same_history(a: History | dict, b: History | dict, prefix: bool = False) -> bool:
+    """Two histories equal bit for bit (NaN equal to NaN).
+
+    ``a`` and ``b`` are :class:`~warpratchet.history.History` objects, compared in their rows (every
+    field of ``HISTORY_FIELDS``), block records (every field of ``BLOCK_FIELDS``) and block
+    subsample, or dicts of rows (field -> sequence: ``History.as_dict()``, ``run --json``'s
+    ``history``, whose JSON null is read as NaN), compared in their rows. With ``prefix``, ``a`` holds
+    the first rows (and block records) of ``b`` rather than all of them.
+    """
+
+    def parts(h: History | dict) -> tuple:
+        return (h.rows, h.block_rows, h.block_indices) if isinstance(h, History) else (h, None, None)
+
+    def same(x: dict, y: dict, fields: tuple[str, ...]) -> bool:
+        n, m = len(x[fields[0]]), len(y[fields[0]])
+        if n > m or (n < m and not prefix):
+            return False
+        # float: JSON's null becomes NaN; the integer fields (steps, counts) stay exact below 2^53
+        return all(
+            np.array_equal(np.array(x[k], dtype=float), np.array(y[k][:n], dtype=float), equal_nan=True)
+            for k in fields
+        )
+
+    (rows_a, blocks_a, idx_a), (rows_b, blocks_b, idx_b) = parts(a), parts(b)
+    if not same(rows_a, rows_b, HISTORY_FIELDS):
+        return False
+    if blocks_a is None or blocks_b is None:
+        return True
+    return same(blocks_a, blocks_b, BLOCK_FIELDS) and np.array_equal(idx_a, idx_b)
