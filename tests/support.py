@@ -52,14 +52,21 @@ def assert_one_line_error(proc: subprocess.CompletedProcess) -> None:
     assert len(lines) == 1 and lines[0].startswith("warpratchet: error:"), proc.stderr
 
 
+#: Longest usage line before an error line (the CLI shortens a longer one to ``usage: PROG [options]
+#: (PROG --help lists them)``).
+USAGE_WIDTH = 100
+
+
 def error_line(stderr: str) -> str:
-    """The one error line of a refusal: alone, or after a short usage line (a flag refused while
-    parsing, argparse's convention); anything else fails."""
+    """The one error line of a refusal, ``PROG: error: ...``: alone, or after one short usage line
+    of the same ``PROG`` (a flag refused while parsing, argparse's convention); anything else fails."""
     lines = stderr.strip().splitlines()
-    if len(lines) == 2 and lines[0].startswith("usage: ") and "error:" not in lines[0]:
-        lines = lines[1:]
-    assert len(lines) == 1 and ": error: " in lines[0], stderr
-    return lines[0]
+    assert len(lines) in (1, 2) and ": error: " in lines[-1], stderr
+    if len(lines) == 2:
+        prog, usage = lines[1].split(": error: ")[0], lines[0]
+        assert usage.startswith(f"usage: {prog} ") and "error:" not in usage, stderr
+        assert len(usage) <= USAGE_WIDTH, stderr
+    return lines[-1]
 
 
 def refused(capsys, argv: list[str]) -> str:
