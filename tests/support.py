@@ -5,6 +5,7 @@ Import with ``from support import ...`` (pytest puts ``tests/`` on ``sys.path``)
 
 from __future__ import annotations
 
+import struct
 import subprocess
 import sys
 from collections.abc import Callable
@@ -97,6 +98,18 @@ class Capture(Observer):
     def after_chunk(self, ensemble, seconds):
         if self.keep(ensemble.step):
             self.states[ensemble.step] = ensemble.state()
+
+
+def bits(value: object) -> object:
+    """Exact identity of a value: a float by its bits, so NaN equals NaN and -0.0 is not 0.0; any
+    other value with its type."""
+    return struct.pack("<d", value) if isinstance(value, float) else (type(value), value)
+
+
+def exact_rows(rows: list[dict], skip=()) -> list[dict]:
+    """Rows (sweep rows: field -> value) in a form that compares bit for bit (:func:`bits`), without
+    the fields in ``skip``."""
+    return [{k: bits(v) for k, v in row.items() if k not in skip} for row in rows]
 
 
 def same_state(a: dict, b: dict) -> bool:
