@@ -5,11 +5,14 @@ Import with ``from support import ...`` (pytest puts ``tests/`` on ``sys.path``)
 
 from __future__ import annotations
 
+import re
 import struct
 import subprocess
 import sys
 from collections.abc import Callable
+from pathlib import Path
 
+import h5py
 import numpy as np
 
 from warpratchet import Observer
@@ -18,6 +21,8 @@ from warpratchet.history import BLOCK_FIELDS, HISTORY_FIELDS, History
 
 #: The CLI flags of the map most tests use, MapParams(3.0, 0.1, 0.01) (domain LR, Eq. Aa).
 MAP_FLAGS = ("--K", "3", "--b1", "0.1", "--b2", "0.01")
+#: The archive's documented layout (its tables are checked against written files).
+ARCHIVE_DOC = Path(__file__).resolve().parents[1] / "docs" / "archive.md"
 
 
 def run_argv(*flags: str) -> list[str]:
@@ -146,3 +151,43 @@ def same_history(a: History | dict, b: History | dict, prefix: bool = False) -> 
     if blocks_a is None or blocks_b is None:
         return True
     return same(blocks_a, blocks_b, BLOCK_FIELDS) and np.array_equal(idx_a, idx_b)
+
+
+# -- the documented archive layout (test_archive.py, test_transport_cli.py) -------------------------
+def documented_names() -> set[str]:
+    """The names docs/archive.md's tables list: ``/group/dataset`` and ``/path@attribute``."""
+    names = set()
+    for line in ARCHIVE_DOC.read_text().splitlines():
+        m = re.match(r"\|\s*`(/[^`]*)`\s*\|", line)
+        if m:
+            names.add(m.group(1))
+    return names
+
+
+#: Attributes every dataset carries (units, description) or that mark HDF5 dimension scales:
+#: documented once in prose, checked by test_archive.py's test_every_dataset_describes_itself.
+DATASET_ATTRS = {"units", "long_name", "CLASS", "NAME", "REFERENCE_LIST", "DIMENSION_LIST"}
+
+
+def written_names(path) -> set[str]:
+    """The names an HDF5 file holds, as the docs write them (without :data:`DATASET_ATTRS`)."""
+    names = set()
+    with h5py.File(path, "r") as f:
+
+        def add(name, obj):
+            names.add(f"/{name}")
+            skip = DATASET_ATTRS if isinstance(obj, h5py.Dataset) else set()
+            names.update(f"/{name}@{key}" for key in obj.attrs if key not in skip)
+
+        names.update(f"/@{key}" for key in f.attrs)
+        f.visititems(add)
+    return names
+
+
+def documented_optional() -> set[str]:
+    """Attributes the table documents as absent for a run-dependent default (RunSpec's rule)."""
+    return {
+        m.group(1)
+        for line in ARCHIVE_DOC.read_text().splitlines()
+        if (m := re.match(r"\|\s*`(/[^`]*@[^`]*)`\s*\|.*\babsent\b", line))
+    }
