@@ -41,6 +41,8 @@ from warpratchet.ensemble import default_threads
 from warpratchet.kernels.indicators import INDICATOR_FIELDS
 
 PARAMS = MapParams(K=3.0, b1=0.1, b2=0.01)
+#: Issue 12: the indicators kernel at least this fraction of ``advance_map``'s throughput (throughput.py
+#: reports it too).
 TARGET = 0.8
 WARMUP_STEPS = 1024
 STATE = ("x", "q", "winding", "dx", "dp", "log_stretch")
