@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from throughput_contenders import Clock, Timing
 
 from warpratchet import Ensemble, MapParams, Observer
 from warpratchet.ensemble import STATE_FIELDS
@@ -137,33 +138,33 @@ def compare(
         pair of runs ended in bitwise equal states) and ``measured`` (the dicts of every
         repetition, in order).
     """
-    plain, plain_cpu, sink, sink_cpu, measured = [], [], [], [], []
+    plain: list[Timing] = []
+    sink: list[Timing] = []
+    measured = []
     identical = True
     for rep in range(repeats):
         ens = fresh(points, cls)
-        wall, cpu = time.perf_counter(), time.process_time()
-        ens.run(steps)
-        plain.append(time.perf_counter() - wall)
-        plain_cpu.append(time.process_time() - cpu)
+        with Clock() as clock:
+            ens.run(steps)
+        plain.append(clock.timing)
         reference = ens.state()
         del ens
 
         ens = fresh(points, cls)
-        wall, cpu = time.perf_counter(), time.process_time()
-        info = run_with_sink(ens, rep)
-        sink.append(time.perf_counter() - wall)
-        sink_cpu.append(time.process_time() - cpu)
+        with Clock() as clock:
+            info = run_with_sink(ens, rep)
+        sink.append(clock.timing)
         identical &= all(np.array_equal(reference[k], ens.array(k)) for k in STATE_FIELDS)
         measured.append(info)
         if after is not None:
             after(info)
         del ens
-        log(f"  {points} x {steps}: plain {plain[-1]:.3f} s, with the sink {sink[-1]:.3f} s")
+        log(f"  {points} x {steps}: plain {plain[-1].seconds:.3f} s, with the sink {sink[-1].seconds:.3f} s")
     return {
-        "plain": min(plain),
-        "plain_cpu": min(plain_cpu),
-        "sink": min(sink),
-        "sink_cpu": min(sink_cpu),
+        "plain": min(t.seconds for t in plain),
+        "plain_cpu": min(t.cpu_seconds for t in plain),
+        "sink": min(t.seconds for t in sink),
+        "sink_cpu": min(t.cpu_seconds for t in sink),
         "identical": identical,
         "measured": measured,
     }

@@ -28,12 +28,12 @@ import json
 import os
 import statistics
 import sys
-import time
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
 import warp as wp
+from throughput_contenders import Clock
 
 from warpratchet import Ensemble, MapParams, kernels
 from warpratchet.cli import positive_int
@@ -41,6 +41,8 @@ from warpratchet.ensemble import default_threads
 from warpratchet.kernels.indicators import INDICATOR_FIELDS
 
 PARAMS = MapParams(K=3.0, b1=0.1, b2=0.01)
+#: Issue 12: the indicators kernel at least this fraction of ``advance_map``'s throughput (throughput.py
+#: reports it too).
 TARGET = 0.8
 WARMUP_STEPS = 1024
 STATE = ("x", "q", "winding", "dx", "dp", "log_stretch")
@@ -61,10 +63,9 @@ def _launcher(kernel: kernels.AdvanceKernel, init: dict, step0: int, extra: int,
             lo, hi = lo_hi
             kernel.launch("cpu", [a[lo:hi] for a in state], [a[lo:hi] for a in acc], step0, steps, PARAMS)
 
-        wall, cpu = time.perf_counter(), time.process_time()
-        with ThreadPoolExecutor(threads) as pool:
+        with Clock() as clock, ThreadPoolExecutor(threads) as pool:
             list(pool.map(shard, shards))
-        return time.perf_counter() - wall, time.process_time() - cpu, state
+        return clock.timing.seconds, clock.timing.cpu_seconds, state
 
     return run
 

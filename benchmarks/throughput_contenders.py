@@ -47,10 +47,11 @@ class Timing:
     cpu_seconds: float
 
 
-class _Clock:
-    """``with _Clock() as clock: ...`` then ``clock.timing``."""
+class Clock:
+    """``with Clock() as clock: ...`` then ``clock.timing``: the wall and process CPU seconds of the
+    block (the overhead benchmarks time with it too)."""
 
-    def __enter__(self) -> _Clock:
+    def __enter__(self) -> Clock:
         self._wall, self._cpu = time.perf_counter(), time.process_time()
         return self
 
@@ -83,7 +84,7 @@ def _copy(state: State) -> State:
 # -- NumPy ------------------------------------------------------------------------------------------
 def numpy_contenders(params: MapParams) -> tuple[list[Contender], str]:
     def advance(state: State, step0: int, steps: int) -> tuple[State, Timing]:
-        with _Clock() as clock:
+        with Clock() as clock:
             out = reference.advance(params, state, steps, step0=step0)
         return out, clock.timing
 
@@ -153,7 +154,7 @@ def numba_contenders(params: MapParams, threads: list[int]) -> tuple[list[Conten
         def advance(state: State, step0: int, steps: int) -> tuple[State, Timing]:
             out = _copy(state)
             numba.set_num_threads(n_threads)
-            with _Clock() as clock:
+            with Clock() as clock:
                 kernel(*(out[name] for name in EVOLVED), step0, steps, *_map_args(params))
             return out, clock.timing
 
@@ -204,7 +205,7 @@ def _c_advance(libs: list[ctypes.CDLL], params: MapParams, n_threads: int) -> Ad
         for lib in libs:
             out = _copy(state)
             arrays = [out[name] for name in EVOLVED]
-            with _Clock() as clock:
+            with Clock() as clock:
                 lib.advance_map(out["x"].size, step0, steps, *_map_args(params), *arrays, n_threads)
             if best is None or clock.timing.seconds < best[1].seconds:
                 best = (out, clock.timing)
@@ -262,7 +263,7 @@ def warp_contenders(
     def make(n_threads: int) -> Advance:
         def advance(state: State, step0: int, steps: int) -> tuple[State, Timing]:
             ens = Ensemble.from_state(params, state, step0, threads=n_threads, device=device)
-            with _Clock() as clock:
+            with Clock() as clock:
                 ens.run(steps)
             out = ens.state()
             return {name: out[name] for name in EVOLVED}, clock.timing
@@ -294,7 +295,7 @@ def warp_indicator_contenders(
                 params, start_points.array("x"), start_points.array("p0"), threads=n_threads, device=device
             ).run(step0)
             del start_points
-            with _Clock() as clock:
+            with Clock() as clock:
                 ens.run(steps)
             out = ens.state()
             return {name: out[name] for name in EVOLVED}, clock.timing

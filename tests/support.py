@@ -5,17 +5,24 @@ Import with ``from support import ...`` (pytest puts ``tests/`` on ``sys.path``)
 
 from __future__ import annotations
 
+import re
+import struct
 import subprocess
 import sys
 from collections.abc import Callable
+from pathlib import Path
 
+import h5py
 import numpy as np
 
 from warpratchet import Observer
 from warpratchet.ensemble import STATE_FIELDS
+from warpratchet.history import BLOCK_FIELDS, HISTORY_FIELDS, History
 
 #: The CLI flags of the map most tests use, MapParams(3.0, 0.1, 0.01) (domain LR, Eq. Aa).
 MAP_FLAGS = ("--K", "3", "--b1", "0.1", "--b2", "0.01")
+#: The archive's documented layout (its tables are checked against written files).
+ARCHIVE_DOC = Path(__file__).resolve().parents[1] / "docs" / "archive.md"
 
 
 def run_argv(*flags: str) -> list[str]:
@@ -51,14 +58,21 @@ def assert_one_line_error(proc: subprocess.CompletedProcess) -> None:
     assert len(lines) == 1 and lines[0].startswith("warpratchet: error:"), proc.stderr
 
 
+#: Longest usage line before an error line (the CLI shortens a longer one to ``usage: PROG [options]
+#: (PROG --help lists them)``).
+USAGE_WIDTH = 100
+
+
 def error_line(stderr: str) -> str:
-    """The one error line of a refusal: alone, or after a short usage line (a flag refused while
-    parsing, argparse's convention); anything else fails."""
+    """The one error line of a refusal, ``PROG: error: ...``: alone, or after one short usage line
+    of the same ``PROG`` (a flag refused while parsing, argparse's convention); anything else fails."""
     lines = stderr.strip().splitlines()
-    if len(lines) == 2 and lines[0].startswith("usage: ") and "error:" not in lines[0]:
-        lines = lines[1:]
-    assert len(lines) == 1 and ": error: " in lines[0], stderr
-    return lines[0]
+    assert len(lines) in (1, 2) and ": error: " in lines[-1], stderr
+    if len(lines) == 2:
+        prog, usage = lines[1].split(": error: ")[0], lines[0]
+        assert usage.startswith(f"usage: {prog} ") and "error:" not in usage, stderr
+        assert len(usage) <= USAGE_WIDTH, stderr
+    return lines[-1]
 
 
 def refused(capsys, argv: list[str]) -> str:
@@ -91,6 +105,89 @@ class Capture(Observer):
             self.states[ensemble.step] = ensemble.state()
 
 
+def bits(value: object) -> object:
+    """Exact identity of a value: a float by its bits, so NaN equals NaN and -0.0 is not 0.0; any
+    other value with its type."""
+    return struct.pack("<d", value) if isinstance(value, float) else (type(value), value)
+
+
+def exact_rows(rows: list[dict], skip=()) -> list[dict]:
+    """Rows (sweep rows: field -> value) in a form that compares bit for bit (:func:`bits`), without
+    the fields in ``skip``."""
+    return [{k: bits(v) for k, v in row.items() if k not in skip} for row in rows]
+
+
 def same_state(a: dict, b: dict) -> bool:
     """Two ensemble states equal bit for bit in every field of ``STATE_FIELDS``."""
     return all(np.array_equal(a[k], b[k]) for k in STATE_FIELDS)
+
+
+def same_history(a: History | dict, b: History | dict, prefix: bool = False) -> bool:
+    """Two histories equal bit for bit (NaN equal to NaN).
+
+    ``a`` and ``b`` are :class:`~warpratchet.history.History` objects, compared in their rows (every
+    field of ``HISTORY_FIELDS``), block records (every field of ``BLOCK_FIELDS``) and block
+    subsample, or dicts of rows (field -> sequence: ``History.as_dict()``, ``run --json``'s
+    ``history``, whose JSON null is read as NaN), compared in their rows. With ``prefix``, ``a`` holds
+    the first rows (and block records) of ``b`` rather than all of them.
+    """
+
+    def parts(h: History | dict) -> tuple:
+        return (h.rows, h.block_rows, h.block_indices) if isinstance(h, History) else (h, None, None)
+
+    def same(x: dict, y: dict, fields: tuple[str, ...]) -> bool:
+        n, m = len(x[fields[0]]), len(y[fields[0]])
+        if n > m or (n < m and not prefix):
+            return False
+        # float: JSON's null becomes NaN; the integer fields (steps, counts) stay exact below 2^53
+        return all(
+            np.array_equal(np.array(x[k], dtype=float), np.array(y[k][:n], dtype=float), equal_nan=True)
+            for k in fields
+        )
+
+    (rows_a, blocks_a, idx_a), (rows_b, blocks_b, idx_b) = parts(a), parts(b)
+    if not same(rows_a, rows_b, HISTORY_FIELDS):
+        return False
+    if blocks_a is None or blocks_b is None:
+        return True
+    return same(blocks_a, blocks_b, BLOCK_FIELDS) and np.array_equal(idx_a, idx_b)
+
+
+# -- the documented archive layout (test_archive.py, test_transport_cli.py) -------------------------
+def documented_names() -> set[str]:
+    """The names docs/archive.md's tables list: ``/group/dataset`` and ``/path@attribute``."""
+    names = set()
+    for line in ARCHIVE_DOC.read_text().splitlines():
+        m = re.match(r"\|\s*`(/[^`]*)`\s*\|", line)
+        if m:
+            names.add(m.group(1))
+    return names
+
+
+#: Attributes every dataset carries (units, description) or that mark HDF5 dimension scales:
+#: documented once in prose, checked by test_archive.py's test_every_dataset_describes_itself.
+DATASET_ATTRS = {"units", "long_name", "CLASS", "NAME", "REFERENCE_LIST", "DIMENSION_LIST"}
+
+
+def written_names(path) -> set[str]:
+    """The names an HDF5 file holds, as the docs write them (without :data:`DATASET_ATTRS`)."""
+    names = set()
+    with h5py.File(path, "r") as f:
+
+        def add(name, obj):
+            names.add(f"/{name}")
+            skip = DATASET_ATTRS if isinstance(obj, h5py.Dataset) else set()
+            names.update(f"/{name}@{key}" for key in obj.attrs if key not in skip)
+
+        names.update(f"/@{key}" for key in f.attrs)
+        f.visititems(add)
+    return names
+
+
+def documented_optional() -> set[str]:
+    """Attributes the table documents as absent for a run-dependent default (RunSpec's rule)."""
+    return {
+        m.group(1)
+        for line in ARCHIVE_DOC.read_text().splitlines()
+        if (m := re.match(r"\|\s*`(/[^`]*@[^`]*)`\s*\|.*\babsent\b", line))
+    }

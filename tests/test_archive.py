@@ -15,7 +15,19 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from support import Capture, assert_one_line_error, cli, quick_benchmark, refused, run_argv, same_state
+from support import (
+    ARCHIVE_DOC,
+    Capture,
+    assert_one_line_error,
+    cli,
+    documented_names,
+    documented_optional,
+    quick_benchmark,
+    refused,
+    run_argv,
+    same_state,
+    written_names,
+)
 
 from warpratchet import Ensemble, MapParams, Observer, open_archive, summarize
 from warpratchet.archive import (
@@ -32,7 +44,6 @@ from warpratchet.history import History
 PARAMS = MapParams(3.0, 0.1, 0.01)
 POINTS = 300
 SEED = 5
-DOC = Path(__file__).resolve().parents[1] / "docs" / "archive.md"
 #: Snapshots and several checkpoints in a 1000-step run.
 SCHEDULE = {"snapshot_every": 200, "snapshot_points": 40, "checkpoint_every": 400, "chunk_steps": 100}
 #: Series columns that depend on the machine, not on the dynamics.
@@ -239,57 +250,20 @@ def test_incompatible_format_version_is_refused(tmp_path, archived):
 
 
 # -- the documented layout is the written one -----------------------------------------------------
-def _documented_names() -> set[str]:
-    names = set()
-    for line in DOC.read_text().splitlines():
-        m = re.match(r"\|\s*`(/[^`]*)`\s*\|", line)
-        if m:
-            names.add(m.group(1))
-    return names
-
-
-#: Attributes every dataset carries (units, description) or that mark HDF5 dimension scales:
-#: documented once in prose, checked by test_every_dataset_describes_itself.
-DATASET_ATTRS = {"units", "long_name", "CLASS", "NAME", "REFERENCE_LIST", "DIMENSION_LIST"}
-
-
-def _written_names(path) -> set[str]:
-    names = set()
-    with h5py.File(path, "r") as f:
-
-        def add(name, obj):
-            names.add(f"/{name}")
-            skip = DATASET_ATTRS if isinstance(obj, h5py.Dataset) else set()
-            names.update(f"/{name}@{key}" for key in obj.attrs if key not in skip)
-
-        names.update(f"/@{key}" for key in f.attrs)
-        f.visititems(add)
-    return names
-
-
-def _documented_optional() -> set[str]:
-    """Attributes the table documents as absent for a run-dependent default (RunSpec's rule)."""
-    return {
-        m.group(1)
-        for line in DOC.read_text().splitlines()
-        if (m := re.match(r"\|\s*`(/[^`]*@[^`]*)`\s*\|.*\babsent\b", line))
-    }
-
-
 def test_docs_match_the_file(archived, tmp_path):
     # the /transport group's names (feature "transport"): tests/test_transport_cli.py
-    documented = {name for name in _documented_names() if not name.startswith("/transport")}
+    documented = {name for name in documented_names() if not name.startswith("/transport")}
     assert len(documented) > 60  # the table was found and parsed
-    optional = _documented_optional()
+    optional = documented_optional()
     assert optional == {"/settings@seed", "/settings@threshold"}
-    written = _written_names(archived[0])
+    written = written_names(archived[0])
     assert documented - written <= optional, "documented but not written"
     assert written - documented == set(), "written but not documented"
     ens = Ensemble(PARAMS, np.full(4, 0.2), np.full(4, 0.3))  # no seed, an explicit threshold
     ArchiveSink(tmp_path / "user.h5", ens, threshold=0.5, chunk_steps=10, history=History(0.5)).close()
-    other = _written_names(tmp_path / "user.h5")
+    other = written_names(tmp_path / "user.h5")
     assert documented - other == {"/settings@seed"} and written - other == {"/settings@seed"}
-    text = DOC.read_text()
+    text = ARCHIVE_DOC.read_text()
     assert "warpratchet-archive" in text and "version 2" in text
 
 

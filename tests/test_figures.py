@@ -18,6 +18,7 @@ import pytest
 from matplotlib import image as mpimg
 
 from viz import figures, report
+from viz.fig9 import fig9_section
 from warpratchet import paper, theory
 from warpratchet.ensemble import Ensemble
 from warpratchet.params import MapParams
@@ -112,6 +113,28 @@ def test_report_verdicts_are_the_stated_test(quick_run):
         b = c.bias
         left_out = (1 - c.row["chaotic_fraction"]) * b.window * c.row["K"]
         assert b.bound == pytest.approx((abs(b.offset) + 4 * b.offset_stderr + left_out) / c.row["steps"])
+
+
+def test_fig9_pairs_the_ensembles_by_b2(quick_run):
+    """The Fig. 9 section pairs the strip's row with the paper's ensemble's at the same b2, not at the
+    same position: the strip's rows reversed give the same table and summary; without its first row,
+    that row's cells are empty and the summary counts one point fewer."""
+    out, _ = quick_run
+    sweeps = report.load_sweeps(out / "sweeps")
+    checked = {name: report.check_rows(name, sweeps[name]) for name in ("fig9", "fig9_paper")}
+    strip = checked["fig9"]
+    assert len(strip) > 1 and [c.row["b2"] for c in strip] == [c.row["b2"] for c in checked["fig9_paper"]]
+    text = fig9_section(checked, sweeps, None, "sweeps")
+    reversed_text = fig9_section({**checked, "fig9": strip[::-1]}, sweeps, None, "sweeps")
+    paired = [i for i, line in enumerate(text) if line.startswith("| 0.") or "lies below the strip's" in line]
+    assert len(paired) == len(strip) + 1 and [reversed_text[i] for i in paired] == [text[i] for i in paired]
+    fewer = fig9_section({**checked, "fig9": strip[1:]}, sweeps, None, "sweeps")
+    [summary] = [line for line in text if "lies below the strip's at" in line]
+    [summary_fewer] = [line for line in fewer if "lies below the strip's at" in line]
+    assert f" of {len(strip)} points" in summary and f" of {len(strip) - 1} points" in summary_fewer
+    first = f"| {strip[0].row['b2']:.4f} |"
+    [row] = [line for line in fewer if line.startswith(first)]
+    assert " |  |  |  | " in row
 
 
 def test_transient_has_settled_by_the_bias_window(quick_run):

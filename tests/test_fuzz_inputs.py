@@ -30,7 +30,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
-from support import MAP_FLAGS, cli
+from support import MAP_FLAGS, cli, error_line
 
 from warpratchet import Ensemble, RunSpec, summarize
 from warpratchet.cli import main
@@ -172,14 +172,13 @@ def _call(argv: list[str]) -> tuple[int, str, str]:
     return code, out.getvalue(), err.getvalue()
 
 
-def _check_refusal(code: int, err: str) -> None:
-    assert code == 2, err
-    lines = err.strip().splitlines()
-    if len(lines) == 2 and lines[0].startswith("usage: "):
-        assert "--help" in lines[0] or "\n" not in lines[0]
-        lines = lines[1:]
-    assert len(lines) == 1 and re.match(r"^warpratchet( \w+)?: error: \S", lines[0]), err
-    assert "Traceback" not in err
+def _check_refusal(code: int, err: str) -> str:
+    """Exit 2 and one error line, after a short usage line of the same command if refused while
+    parsing (:func:`support.error_line`), and no traceback: the error line."""
+    assert code == 2 and "Traceback" not in err, err
+    line = error_line(err)
+    assert re.match(r"^warpratchet( \w+)?: error: \S", line), err
+    return line
 
 
 #: Text a flag is given that no flag takes: empty, blanks, words, ``1e6`` for a count, NaN.
@@ -213,9 +212,8 @@ def _refused_naming(code: int, err: str, hostile: list[str], values: dict[str, s
     """A one-line refusal; with one hostile flag, the line names it (or the value it was given)
     unless the command is refused without it too (a hostile draw may be valid, and the other
     flags' combination the cause: ``--chunk-steps 5`` with ``--checkpoint-every 1``)."""
-    _check_refusal(code, err)
+    line = _check_refusal(code, err)
     if len(hostile) == 1:
-        line = err.strip().splitlines()[-1]
         value = values[hostile[0]]
         if any(n in line for n in _names(hostile[0])) or (value.strip() and value in line):
             return

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from support import quick_benchmark, run_argv
+from support import quick_benchmark, run_argv, same_history
 
 from warpratchet import Ensemble, MapParams, Observer, RunSpec, acceleration, lyapunov, summarize
 from warpratchet.cli import main
@@ -39,14 +39,6 @@ def test_steps_are_log_spaced_with_half_and_last():
     assert history_steps(1000, 1000) == []
 
 
-def _rows(history):
-    return {name: np.array(values, dtype=float) for name, values in history.rows.items()}
-
-
-def _same(a, b):
-    return all(np.array_equal(a[k], b[k], equal_nan=True) for k in HISTORY_FIELDS)
-
-
 def test_last_row_is_the_end_summary_bit_for_bit():
     ens = Ensemble.sample(PARAMS, 2000, "strip", seed=3, threads=2)
     history = History()
@@ -71,7 +63,7 @@ def test_rows_do_not_depend_on_chunking_or_threads():
     a, b = History(), History()
     Ensemble.sample(PARAMS, 500, "torus", seed=1, threads=1).run(1500, [a], chunk_steps=7)
     Ensemble.sample(PARAMS, 500, "torus", seed=1, threads=2).run(1500, [b])
-    assert _same(_rows(a), _rows(b))
+    assert same_history(a, b)  # rows, block records and subsample
 
 
 class _StopAt(Observer):
@@ -91,8 +83,8 @@ def test_an_interrupted_run_continued_to_its_target_records_the_same_rows():
     with pytest.raises(KeyboardInterrupt):
         ens.run(2000, [first, _StopAt(700)], chunk_steps=100)
     ens.run(2000 - ens.step, [rest], chunk_steps=100)
-    joined = {k: np.concatenate([_rows(first)[k], _rows(rest)[k]]) for k in HISTORY_FIELDS}
-    assert _same(joined, _rows(whole))
+    joined = {k: first.rows[k] + rest.rows[k] for k in HISTORY_FIELDS}
+    assert same_history(joined, whole)
 
 
 def test_bad_arguments_name_the_parameter():
@@ -149,9 +141,7 @@ def test_restored_history_continues_like_the_uninterrupted_one():
         **first.settings(),
     )
     ens.run(3000 - ens.step, [again], chunk_steps=250)
-    assert _same(_rows(again), _rows(whole))
-    for name in BLOCK_FIELDS:
-        assert np.array_equal(np.array(again.block_rows[name]), np.array(whole.block_rows[name])), name
+    assert same_history(again, whole)  # rows, block records and subsample
     assert again.convergence() == whole.convergence()
 
 

@@ -6,7 +6,6 @@ import json
 import math
 import os
 import signal
-import struct
 import subprocess
 import sys
 import textwrap
@@ -14,6 +13,7 @@ import textwrap
 import h5py
 import numpy as np
 import pytest
+from support import bits, exact_rows
 
 from warpratchet import Ensemble, summarize, theory
 from warpratchet import sweep as sweep_module
@@ -33,7 +33,6 @@ from warpratchet.sweep import (
     run_point,
     run_sweep,
 )
-from warpratchet.sweep.records import ADDED_COLUMNS
 
 # Small enough that a point takes a few milliseconds: these tests check bookkeeping, not physics.
 SPEC = SweepSpec(points=400, steps=3000, init="strip", seed=5)
@@ -41,19 +40,9 @@ SPEC = SweepSpec(points=400, steps=3000, init="strip", seed=5)
 POINTS = maximal_path([0.01, 0.1]) + line_path(1 / 3, [0.08]) + fixed_b1_path(0.25, [0.05], K=2.99)
 
 
-def _bits(value):
-    """Exact identity of a row value: floats by their bits, so NaN equals NaN and -0.0 is not 0.0."""
-    return struct.pack("<d", value) if isinstance(value, float) else (type(value), value)
-
-
-def _exact(rows, skip=()):
-    """Rows in a form that compares bit for bit, without the fields in ``skip``."""
-    return [{k: _bits(v) for k, v in row.items() if k not in skip} for row in rows]
-
-
 def _physics(rows):
     """Rows without the timing fields (which differ between runs), compared bit for bit."""
-    return _exact(rows, skip=TIMING_FIELDS)
+    return exact_rows(rows, skip=TIMING_FIELDS)
 
 
 @pytest.fixture(scope="module")
@@ -139,8 +128,8 @@ def test_rows_summarise_the_ensemble_their_seed_rebuilds(reference_rows):
     row, p = reference_rows[2], POINTS[2]
     ens = Ensemble.sample(p, SPEC.points, SPEC.init, row["seed"], threads=1).run(SPEC.steps)
     s = summarize(ens.state(), ens.step)
-    assert _bits(s.A) == _bits(row["A"]) and _bits(s.lyapunov) == _bits(row["lyapunov"])
-    assert _bits(s.threshold) == _bits(row["threshold"])  # the threshold used, the default resolved
+    assert bits(s.A) == bits(row["A"]) and bits(s.lyapunov) == bits(row["lyapunov"])
+    assert bits(s.threshold) == bits(row["threshold"])  # the threshold used, the default resolved
     assert s.chaotic_points == row["chaotic_points"]
     assert _physics([run_point(p, SPEC, 2, threads=1)]) == _physics([row])
 
@@ -192,16 +181,17 @@ def test_interrupted_sweep_resumes_computing_only_missing_points(tmp_path, refer
     with h5py.File(out, "r+") as f:
         f["rows"].resize((3,))
         f["rows"][2] = np.zeros((), dtype=f["rows"].dtype)
-    assert _exact(read_sweep(out)) == _exact(first)
+    assert exact_rows(read_sweep(out)) == exact_rows(first)
 
     computed = []
     rows = run_sweep(POINTS, SPEC, out=out, progress=False, on_row=computed.append)
     assert [row["index"] for row in computed] == [2, 3]
-    assert _exact(rows[:2]) == _exact(first)  # identical seconds too: read back, not recomputed
+    assert exact_rows(rows[:2]) == exact_rows(first)  # identical seconds too: read back, not recomputed
     assert _physics(rows) == _physics(read_sweep(out)) == _physics(reference_rows)
     # A finished sweep is all resume: nothing left to compute.
     computed.clear()
-    assert _exact(run_sweep(POINTS, SPEC, out=out, progress=False, on_row=computed.append)) == _exact(rows)
+    again = run_sweep(POINTS, SPEC, out=out, progress=False, on_row=computed.append)
+    assert exact_rows(again) == exact_rows(rows)
     assert computed == []
 
 
@@ -282,25 +272,6 @@ def test_cli_json_rows_and_resume(tmp_path, capsys):
     assert err.count("\n") == 1 and "steps is 2000 in the file, 3000 requested" in err and "--force" in err
     assert main(changed + ["--force"]) == 0
     assert read_definition(out)[1].steps == 3000
-
-
-# -- files of release 0.1.0 ----------------------------------------------------------------------
-def test_a_format_v1_sweep_file_reads_and_resumes_computing_nothing(tmp_path, capsys):
-    """tests/data/sweep_v1.h5 (tests/data/README.md): its rows, and the same command finds it complete."""
-    data = os.path.join(os.path.dirname(__file__), "data")
-    with open(os.path.join(data, "sweep_v1.json")) as f:
-        expected = json.load(f)
-    # Columns added since (records.ADDED_COLUMNS: the verdict of issue 15) read as "not recorded".
-    added = _exact([ADDED_COLUMNS] * len(expected))
-    rows = read_sweep(os.path.join(data, "sweep_v1.h5"))
-    assert _exact(rows, skip=ADDED_COLUMNS) == _exact(expected)
-    assert _exact([{k: row[k] for k in ADDED_COLUMNS} for row in rows]) == added
-    copy = tmp_path / "sweep_v1.h5"
-    copy.write_bytes(open(os.path.join(data, "sweep_v1.h5"), "rb").read())
-    args = ["sweep", "--path", "maximal", "--K", "3", "--b2", "0.02:0.04:2", "--points", "200"]
-    assert main([*args, "--steps", "512", "--out", str(copy), "--quiet"]) == 0
-    assert capsys.readouterr().out.splitlines()[-1] == f"2 points: 0 computed, 2 read from {copy}"
-    assert _exact(read_sweep(copy), skip=ADDED_COLUMNS) == _exact(expected)
 
 
 # -- benchmark smoke test -------------------------------------------------------------------------

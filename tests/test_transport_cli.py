@@ -14,7 +14,9 @@ import time
 
 import numpy as np
 from support import MAP_FLAGS, cli
-from test_archive import _documented_names, _documented_optional, _written_names
+from support import documented_names as _documented_names
+from support import documented_optional as _documented_optional
+from support import written_names as _written_names
 
 from warpratchet import MapParams
 from warpratchet.archive import Archive, ArchiveError, open_archive, verify_archive

@@ -133,16 +133,33 @@ def _n_dependence(ensembles: dict[str, Any] | None) -> list[str]:
     ]
 
 
+def _paired(
+    paper_rows: list[CheckedRow], strip_rows: list[CheckedRow]
+) -> list[tuple[CheckedRow, CheckedRow | None, float]]:
+    """Each row of the paper's ensemble with the strip's row at the same b2 (None if the strip sweep
+    has none) and the gap A(strip) - A(paper) in combined robust standard errors (NaN without one).
+
+    Rows are matched by b2, not by position: the two sweeps need not hold the same points in the
+    same order."""
+    strip = {round(c.row["b2"], 12): c for c in strip_rows}
+    out = []
+    for c in paper_rows:
+        s = strip.get(round(c.row["b2"], 12))
+        gap = math.nan
+        if s is not None:
+            gap = (s.row["A"] - c.row["A"]) / math.hypot(robust_stderr(s.row), robust_stderr(c.row))
+        out.append((c, s, gap))
+    return out
+
+
 def _main_table(paper_rows: list[CheckedRow], strip_rows: list[CheckedRow]) -> list[str]:
     head = (
         "| b2 | domain (K = 3) | sigma | A (paper's ensemble) | stderr | robust se | drift z | verdict "
         "| A (strip B) | robust se | strip - paper (se) | A (Eq. Ab at K = 3) |"
     )
     lines = [head, "|" + "---|" * 12]
-    strip = {round(c.row["b2"], 12): c for c in strip_rows}
-    for c in paper_rows:
+    for c, s, gap in _paired(paper_rows, strip_rows):
         r = c.row
-        s = strip.get(round(r["b2"], 12))
         cells = [
             fixed(r["b2"], 4),
             theory.domain(MapParams(paper.K3, r["b1"], r["b2"])),
@@ -156,7 +173,6 @@ def _main_table(paper_rows: list[CheckedRow], strip_rows: list[CheckedRow]) -> l
         if s is None:
             cells += ["", "", ""]
         else:
-            gap = (s.row["A"] - r["A"]) / math.hypot(robust_stderr(s.row), robust_stderr(r))
             cells += [fixed(s.row["A"]), general(s.row["A_stderr_robust"]), f"{gap:+.1f}"]
         cells.append(fixed(c.theory))
         lines.append("| " + " | ".join(cells) + " |")
@@ -259,11 +275,7 @@ def fig9_section(
     else:
         out += _ensemble_table(ensembles)
         out += _n_dependence(ensembles)
-    gaps = [
-        (s.row["A"] - c.row["A"]) / math.hypot(robust_stderr(s.row), robust_stderr(c.row))
-        for c, s in zip(paper_rows, strip_rows, strict=False)
-        if math.isclose(c.row["b2"], s.row["b2"])
-    ]
+    gaps = [gap for _, s, gap in _paired(paper_rows, strip_rows) if s is not None]
     dev = [c.deviation for c in paper_rows]
     worst = max(paper_rows, key=lambda c: abs(c.deviation))
     out += [
