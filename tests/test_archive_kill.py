@@ -31,7 +31,7 @@ import time
 import h5py
 import numpy as np
 import pytest
-from support import Capture, same_state
+from support import Capture, same_history, same_state
 
 from warpratchet import Ensemble, MapParams
 from warpratchet._h5 import LIBVER, PAGE_SIZE, open_h5
@@ -46,7 +46,7 @@ from warpratchet.archive import (
 )
 from warpratchet.archive.layout import ROW_CHUNK
 from warpratchet.ensemble import STATE_FIELDS
-from warpratchet.history import BLOCK_FIELDS, HISTORY_FIELDS, History
+from warpratchet.history import History
 
 K, B1, B2 = 3.0, 0.1, 0.01
 POINTS, SEED, STEPS = 2000, 7, 60_000
@@ -74,20 +74,8 @@ def reference(tmp_path_factory):
         ens.run(STEPS, [cap, history, sink], chunk_steps=sink.chunk_steps)
     with Archive(path) as arc:
         series, snaps, kept = arc.series, arc.snapshots, arc.history
-    assert all(np.array_equal(kept.rows[k], history.rows[k], equal_nan=True) for k in HISTORY_FIELDS)
+    assert same_history(kept, history)
     return ens, cap.states, series, snaps, history
-
-
-def _same_history(history: History, ref: History, whole: bool = False) -> None:
-    """``history`` holds a prefix of the reference's rows and block records (all of them if ``whole``)."""
-    rows, blocks = len(history.rows["step"]), len(history.block_rows["block_step"])
-    if whole:
-        assert (rows, blocks) == (len(ref.rows["step"]), len(ref.block_rows["block_step"]))
-    for name in HISTORY_FIELDS:
-        assert np.array_equal(history.rows[name], ref.rows[name][:rows], equal_nan=True), name
-    for name in BLOCK_FIELDS:
-        assert np.array_equal(history.block_rows[name], ref.block_rows[name][:blocks]), name
-    assert np.array_equal(history.block_indices, ref.block_indices)
 
 
 def _launch(path: str) -> subprocess.Popen:
@@ -130,7 +118,7 @@ def _check_archive(path: str, reference, seen: tuple[int, int] | None) -> int:
     _, states, ref_series, ref_snaps, ref_history = reference
     with Archive(path) as arc:
         series, snaps = arc.series, arc.snapshots
-        _same_history(arc.history, ref_history)
+        assert same_history(arc.history, ref_history, prefix=True)
         rows = series["step"].size
         if seen is not None and seen[0] == os.stat(path).st_ino:
             assert rows >= seen[1], f"{seen[1]} rows were readable before the kill, {rows} after"
@@ -201,15 +189,12 @@ def test_sigkill_at_random_moments_then_resume_is_bitwise_identical(tmp_path, re
         assert report["steps"] == STEPS
         ref_rows = reference[4].as_dict()  # the JSON's history is the uninterrupted run's, bit for bit
         assert report["history"].keys() == ref_rows.keys()
-        for name, values in ref_rows.items():
-            assert np.array_equal(np.array(report["history"][name], dtype=float), values, equal_nan=True), (
-                name
-            )
+        assert same_history(report["history"], reference[4])
     _check_archive(path, reference, None)
     with Archive(path) as arc:
         final = arc.ensemble(threads=1)
         assert arc.rows == STEPS // CHUNK and arc.checkpoint_step == STEPS
-        _same_history(arc.history, reference[4], whole=True)
+        assert same_history(arc.history, reference[4])
     assert final.step == ref_ens.step == STEPS
     for name in STATE_FIELDS:
         assert np.array_equal(final.array(name), ref_ens.array(name)), name
