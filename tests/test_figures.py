@@ -10,6 +10,7 @@ probability ~6e-5, so a failure here means a real disagreement.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 
@@ -135,6 +136,10 @@ def test_fig9_pairs_the_ensembles_by_b2(quick_run):
     first = f"| {strip[0].row['b2']:.4f} |"
     [row] = [line for line in fewer if line.startswith(first)]
     assert " |  |  |  | " in row
+    # no b2 in common: the sentence says so (it used to fail on min() of no gaps)
+    shifted = [dataclasses.replace(c, row={**c.row, "b2": c.row["b2"] + 1e-3}) for c in strip]
+    apart = fig9_section({**checked, "fig9": shifted}, sweeps, None, "sweeps")
+    assert any("share no b2, so they are not compared" in line for line in apart)
 
 
 def test_transient_has_settled_by_the_bias_window(quick_run):
