@@ -1,4 +1,5 @@
-"""Reading an archive safely: HDF5 failures as one line, SWMR refreshes, extents, finite states.
+"""Reading an archive safely: HDF5 failures as one line, SWMR refreshes, extents, counters and the
+valid rows they count, finite states.
 
 Shared by the reader, the writer, ``resume`` and ``verify`` of :mod:`warpratchet.archive`.
 """
@@ -11,10 +12,10 @@ from collections.abc import Iterator
 import h5py
 import numpy as np
 
-from .._h5verify import chunk_past_end, first_line, refresh
+from .._h5verify import chunk_past_end, first_line, read_rows, refresh
 from .names import ArchiveError
 
-__all__ = ["reading", "refresh", "check_extent", "nonfinite", "listed"]
+__all__ = ["reading", "refresh", "check_extent", "valid_rows", "nonfinite", "listed"]
 
 
 @contextlib.contextmanager
@@ -36,6 +37,24 @@ def check_extent(path: str, ds: h5py.Dataset, rows: int | None = None) -> None:
     past = chunk_past_end(path, ds, rows)
     if past is not None:
         raise ArchiveError(f"{path}: {past}; the archive is truncated or corrupted")
+
+
+def valid_rows(path: str, group: h5py.Group, name: str, n: int) -> np.ndarray:
+    """The first ``n`` rows of the appendable dataset ``group[name]``: the valid ones, as its
+    counter says (``(n, ...)``, the dataset's dtype).
+
+    Read afresh (a live writer may have appended since), refused if the dataset holds fewer rows
+    or a chunk of them lies past the end of the file, every checksum verified; a torn append of
+    a killed writer, or a rewrite a live writer is half way through, reads as
+    :func:`warpratchet._h5verify.read_rows` reads it. Any failure is one :class:`ArchiveError`.
+    """
+    where = f"{group.name}/{name}"
+    with reading(path, where):
+        ds = refresh(group[name])
+        if ds.shape[0] < n:
+            raise ArchiveError(f"{path}: {where} has {ds.shape[0]} rows, {n} are valid")
+        check_extent(path, ds, n)
+        return read_rows(ds, n)
 
 
 def nonfinite(state: dict[str, np.ndarray]) -> dict[str, int]:

@@ -17,7 +17,7 @@ import h5py
 import numpy as np
 
 from ..history import BLOCK_FIELDS, HISTORY_FIELDS, History
-from .checks import check_extent, reading
+from .checks import check_extent, reading, valid_rows
 from .checks import refresh as _refresh
 from .names import HISTORY_COUNTERS, ArchiveError
 from .rows import Rows
@@ -133,16 +133,10 @@ def history_settings(path: str, f: h5py.File, settings: dict[str, Any]) -> dict[
 def read_history(path: str, f: h5py.File, settings: dict[str, Any]) -> History:
     """The :class:`History` stored in an open archive (its valid records), ready to continue."""
     n_rows, n_blocks = history_counts(path, f)
-    g = f["history"]
-    rows, blocks = {}, {}
-    for names, n, out in ((HISTORY_FIELDS, n_rows, rows), (BLOCK_FIELDS, n_blocks, blocks)):
-        for name in names:
-            with reading(path, f"/history/{name}"):
-                ds = _refresh(g[name])
-                if ds.shape[0] < n:
-                    raise ArchiveError(f"{path}: /history/{name} has {ds.shape[0]} rows, {n} are valid")
-                check_extent(path, ds, n)
-                out[name] = ds[:n]
+    with reading(path, "/history"):
+        g = f["history"]
+    rows = {name: valid_rows(path, g, name, n_rows) for name in HISTORY_FIELDS}
+    blocks = {name: valid_rows(path, g, name, n_blocks) for name in BLOCK_FIELDS}
     with reading(path, "/history/block_indices"):
         indices = _refresh(g["block_indices"])[:]
     return History.restore(rows, blocks, indices, **history_settings(path, f, settings))

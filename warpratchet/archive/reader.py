@@ -21,14 +21,14 @@ import h5py
 import numpy as np
 
 from .._files import open_h5
-from .._h5verify import first_line, read_rows
+from .._h5verify import first_line
 from ..ensemble import Ensemble
 from ..history import History
 from ..params import MapParams
 from ..spec import SAMPLERS, RunSpec, attr_value
 from . import progress
 from . import transport as _transport
-from .checks import check_extent, reading
+from .checks import check_extent, reading, valid_rows
 from .checks import refresh as _refresh
 from .history_group import history_info, read_history
 from .layout import read_settings
@@ -161,15 +161,9 @@ class Archive:
         ``wall_time`` the chunk's kernel seconds, ``unix_time`` when the row was written.
         """
         n = self.rows
-        out = {}
-        for name in SERIES_FIELDS:
-            with reading(self.path, f"/series/{name}"):
-                ds = _refresh(self._file["series"][name])
-                if ds.shape[0] < n:
-                    raise ArchiveError(f"{self.path}: /series/{name} has {ds.shape[0]} rows, {n} are valid")
-                check_extent(self.path, ds, n)
-                out[name] = read_rows(ds, n)
-        return out
+        with reading(self.path, "/series"):
+            g = self._file["series"]
+        return {name: valid_rows(self.path, g, name, n) for name in SERIES_FIELDS}
 
     @property
     def snapshots(self) -> Snapshots:

@@ -14,10 +14,9 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .._h5verify import read_rows
 from ..ensemble import STATE_FIELDS
 from ..observables import acceleration, lyapunov
-from .checks import check_extent, reading
+from .checks import check_extent, reading, valid_rows
 from .checks import refresh as _refresh
 from .names import SNAPSHOT_FIELDS, ArchiveError
 
@@ -79,16 +78,11 @@ def read_snapshots(path: str, f: h5py.File, n: int) -> Snapshots:
     with reading(path, "/snapshots"):
         g = f["snapshots"]
         indices = _refresh(g["indices"])[:]
-        steps = _refresh(g["step"])
-        if steps.shape[0] < n:
-            raise ArchiveError(f"{path}: /snapshots/step has {steps.shape[0]} rows, {n} are valid")
         check_extent(path, g["indices"])
-        check_extent(path, steps, n)
-        fields = {"steps": read_rows(steps, n), "indices": indices}
-        for name in SNAPSHOT_FIELDS:
-            ds = _refresh(g[name])
-            check_extent(path, ds, n)
-            if ds.shape[0] < n or (n and ds.shape[1] != indices.size):
-                raise ArchiveError(f"{path}: /snapshots/{name} has shape {ds.shape}, expected ({n}, M)")
-            fields[name] = read_rows(ds, n).reshape(n, indices.size)
+    fields = {"steps": valid_rows(path, g, "step", n), "indices": indices}
+    for name in SNAPSHOT_FIELDS:
+        rows = valid_rows(path, g, name, n)
+        if n and rows.shape[1] != indices.size:
+            raise ArchiveError(f"{path}: /snapshots/{name} has shape {rows.shape}, expected ({n}, M)")
+        fields[name] = rows.reshape(n, indices.size)
     return Snapshots(**fields)
