@@ -15,7 +15,7 @@ import numpy as np
 from .._h5verify import chunk_past_end, first_line, read_rows, refresh
 from .names import ArchiveError
 
-__all__ = ["reading", "refresh", "check_extent", "valid_rows", "nonfinite", "listed"]
+__all__ = ["reading", "refresh", "check_extent", "read_counter", "valid_rows", "nonfinite", "listed"]
 
 
 @contextlib.contextmanager
@@ -37,6 +37,21 @@ def check_extent(path: str, ds: h5py.Dataset, rows: int | None = None) -> None:
     past = chunk_past_end(path, ds, rows)
     if past is not None:
         raise ArchiveError(f"{path}: {past}; the archive is truncated or corrupted")
+
+
+def read_counter(path: str, f: h5py.File, where: str, *, signed: bool = False) -> int:
+    """The ``(1,)`` int64 counter at ``where`` in ``f`` (``"progress/series_rows"``, ...), read afresh.
+
+    ArchiveError if it is unreadable, past the end of the file, or negative (unless ``signed``:
+    ``progress/target_step`` is -1 before a run's first target is known).
+    """
+    with reading(path, f"/{where}"):
+        ds = refresh(f[where])
+        check_extent(path, ds)
+        n = int(ds[0])
+    if n < 0 and not signed:
+        raise ArchiveError(f"{path}: /{where} = {n} is negative; the archive is corrupted")
+    return n
 
 
 def valid_rows(path: str, group: h5py.Group, name: str, n: int) -> np.ndarray:

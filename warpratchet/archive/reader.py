@@ -28,8 +28,7 @@ from ..params import MapParams
 from ..spec import SAMPLERS, RunSpec, attr_value
 from . import progress
 from . import transport as _transport
-from .checks import check_extent, reading, valid_rows
-from .checks import refresh as _refresh
+from .checks import read_counter, reading, valid_rows
 from .history_group import history_info, read_history
 from .layout import read_settings
 from .names import (
@@ -112,14 +111,7 @@ class Archive:
 
     # -- live data ------------------------------------------------------------------------------
     def _counter(self, key: str) -> int:
-        path = self._counters[key]
-        with reading(self.path, f"/{path}"):
-            ds = _refresh(self._file[path])
-            check_extent(self.path, ds)
-            n = int(ds[0])
-        if n < 0 and key != "target":
-            raise ArchiveError(f"{self.path}: /{path} = {n} is negative; the archive is corrupted")
-        return n
+        return read_counter(self.path, self._file, self._counters[key], signed=key == "target")
 
     @property
     def rows(self) -> int:
