@@ -39,7 +39,7 @@ from .names import (
     ArchiveError,
     ArchiveWarning,
 )
-from .slots import newest_good, read_state, slot_step, slot_steps
+from .slots import newest_good, read_state, slot_steps
 from .snapshots import Snapshots, read_snapshots
 
 __all__ = ["Snapshots", "Archive", "open_archive"]
@@ -161,9 +161,6 @@ class Archive:
     def snapshots(self) -> Snapshots:
         """Snapshots recorded so far (``S`` may be 0); see :class:`Snapshots`."""
         return read_snapshots(self.path, self._file, self.snapshot_count)
-
-    def _slot_step(self, name: str) -> int:
-        return slot_step(self.path, self._file, name)
 
     def _slot_steps(self, problems: list[str] | None = None) -> list[tuple[int, str]]:
         """Complete slots as ``(step, name)``, newest first (:func:`.slots.slot_steps`)."""
