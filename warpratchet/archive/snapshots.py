@@ -16,6 +16,7 @@ import numpy as np
 
 from ..ensemble import STATE_FIELDS
 from ..observables import acceleration, lyapunov
+from ..sampling import salted_subsample
 from .checks import check_extent, reading, valid_rows
 from .checks import refresh as _refresh
 from .names import SNAPSHOT_FIELDS, ArchiveError
@@ -57,8 +58,7 @@ class Snapshots:
 
 def snapshot_indices(points: int, m: int, seed: int | None) -> np.ndarray:
     """The sorted int64 indices of ``m`` of ``points`` points, fixed by ``seed`` (None as 0)."""
-    rng = np.random.default_rng([_SNAPSHOT_SALT, seed or 0])
-    return np.sort(rng.choice(points, size=m, replace=False)).astype(np.int64)
+    return salted_subsample(points, seed, m, _SNAPSHOT_SALT)
 
 
 def snapshot_row(live: dict[str, np.ndarray], indices: np.ndarray, step: int) -> dict[str, Any]:
