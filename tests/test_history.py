@@ -13,6 +13,7 @@ import pytest
 from support import quick_benchmark, run_argv, same_history
 
 from warpratchet import Ensemble, MapParams, Observer, RunSpec, acceleration, lyapunov, summarize
+from warpratchet.archive.snapshots import snapshot_indices
 from warpratchet.cli import main
 from warpratchet.history import (
     BLOCK_FIELDS,
@@ -25,6 +26,7 @@ from warpratchet.history import (
 )
 from warpratchet.observables import THRESHOLD_RULES as RULE_FACTORS
 from warpratchet.observables import lyapunov_threshold
+from warpratchet.sampling import salted_subsample
 from warpratchet.spec import THRESHOLD_RULES
 
 PARAMS = MapParams(3.0, 0.1, 0.01)
@@ -95,6 +97,18 @@ def test_bad_arguments_name_the_parameter():
 
 
 # -- block gains, the verdict, the threshold rule, the CLI -----------------------------------------
+def test_subsamples_are_salted_draws_kept_apart_by_their_salts():
+    """``salted_subsample`` (the block subsample's and the snapshots'): distinct sorted indices, the
+    same for the same seed (None as 0), different for different salts."""
+    a = salted_subsample(1000, 4, 300, 1)
+    assert a.dtype == np.int64 and a.size == 300 and np.all(np.diff(a) > 0) and 0 <= a[0] and a[-1] < 1000
+    assert np.array_equal(a, salted_subsample(1000, np.int64(4), 300, 1))
+    assert np.array_equal(salted_subsample(1000, None, 300, 1), salted_subsample(1000, 0, 300, 1))
+    assert not np.array_equal(a, salted_subsample(1000, 4, 300, 2))
+    assert not np.array_equal(block_subsample(1000, 4, 300), snapshot_indices(1000, 300, 4))
+    assert np.array_equal(salted_subsample(5, 9, 5, 2), np.arange(5))
+
+
 def test_block_gains_are_the_momentum_gains_of_a_fixed_subsample_at_equal_blocks():
     """Each block record is p_n - p_0 (and the FTLE) of the subsample at floor(target j / 64)."""
     target = 6400

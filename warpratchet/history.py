@@ -56,6 +56,7 @@ from .ensemble import STATE_FIELDS
 from .errors import check_choice, check_count, check_optional, check_real
 from .observables import SUMMARY_CHUNK, THRESHOLD_RULES, Summary, chaotic_mask, lyapunov, momentum_gain
 from .runloop import Observer
+from .sampling import salted_subsample
 from .verdict import Assessment, assess
 
 __all__ = [
@@ -142,8 +143,7 @@ def block_subsample(points: int, seed: int | None, size: int = BLOCK_POINTS) -> 
     """
     points = check_count("points", points, 1)
     m = min(check_count("size", size, 1), points)
-    rng = np.random.default_rng([_BLOCK_SALT, 0 if seed is None else int(seed)])
-    return np.sort(rng.choice(points, size=m, replace=False)).astype(np.int64)
+    return salted_subsample(points, seed, m, _BLOCK_SALT)
 
 
 def _variance(state: Mapping[str, np.ndarray]) -> float:

@@ -5,6 +5,7 @@ ensemble of Figs. 2 and 7-8), ``torus`` uniform on the unit torus (the paper's F
 :data:`warpratchet.paper.FIG9_ENSEMBLE`), ``grid`` a lattice with irrational offsets (the census
 of :mod:`warpratchet.sumrule`). :func:`sampled_chunks` yields the same points chunk by chunk, so
 :meth:`warpratchet.ensemble.Ensemble.sample` builds 10^8 points without full-size temporaries.
+:func:`salted_subsample` picks the fixed subsamples of points a run follows (snapshots, blocks).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ __all__ = [
     "sample_grid",
     "grid_nodes",
     "sampled_chunks",
+    "salted_subsample",
 ]
 
 #: Grid offsets in units of the spacing. The golden-ratio fraction on the x axis keeps nodes
@@ -116,3 +118,15 @@ def sampled_chunks(params: MapParams, init: str, points: int, seed: int):
             yield lo, (_strip_x(params, u) if init == "strip" else u), rng_p.random(u.size)
 
     return points, uniform()
+
+
+def salted_subsample(points: int, seed: int | None, size: int, salt: int) -> np.ndarray:
+    """Sorted indices, shape ``(size,)`` int64, of ``size`` of ``points`` points drawn without
+    replacement, fixed by the run's ``seed`` (None as 0) and a ``salt`` of the caller's own.
+
+    The salt keeps each subsample's stream apart from the sampler's (``default_rng(seed)``) and
+    from the other subsamples', and makes a resumed run draw the same points. Archived runs store
+    these indices, so the draw must never change: ``default_rng([salt, seed]).choice``, sorted.
+    """
+    rng = np.random.default_rng([salt, 0 if seed is None else int(seed)])
+    return np.sort(rng.choice(points, size=size, replace=False)).astype(np.int64)

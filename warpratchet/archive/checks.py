@@ -1,4 +1,5 @@
-"""Reading an archive safely: HDF5 failures as one line, SWMR refreshes, extents, finite states.
+"""Reading an archive safely: HDF5 failures as one line, SWMR refreshes, extents, counters and the
+valid rows they count, finite states.
 
 Shared by the reader, the writer, ``resume`` and ``verify`` of :mod:`warpratchet.archive`.
 """
@@ -11,10 +12,10 @@ from collections.abc import Iterator
 import h5py
 import numpy as np
 
-from .._h5verify import chunk_past_end, first_line, refresh
+from .._h5verify import chunk_past_end, first_line, read_rows, refresh
 from .names import ArchiveError
 
-__all__ = ["reading", "refresh", "check_extent", "nonfinite", "listed"]
+__all__ = ["reading", "refresh", "check_extent", "read_counter", "valid_rows", "nonfinite", "listed"]
 
 
 @contextlib.contextmanager
@@ -36,6 +37,39 @@ def check_extent(path: str, ds: h5py.Dataset, rows: int | None = None) -> None:
     past = chunk_past_end(path, ds, rows)
     if past is not None:
         raise ArchiveError(f"{path}: {past}; the archive is truncated or corrupted")
+
+
+def read_counter(path: str, f: h5py.File, where: str, *, signed: bool = False) -> int:
+    """The ``(1,)`` int64 counter at ``where`` in ``f`` (``"progress/series_rows"``, ...), read afresh.
+
+    ArchiveError if it is unreadable, past the end of the file, or negative (unless ``signed``:
+    ``progress/target_step`` is -1 before a run's first target is known).
+    """
+    with reading(path, f"/{where}"):
+        ds = refresh(f[where])
+        check_extent(path, ds)
+        n = int(ds[0])
+    if n < 0 and not signed:
+        raise ArchiveError(f"{path}: /{where} = {n} is negative; the archive is corrupted")
+    return n
+
+
+def valid_rows(path: str, group: h5py.Group, name: str, n: int) -> np.ndarray:
+    """The first ``n`` rows of the appendable dataset ``group[name]``: the valid ones, as its
+    counter says (``(n, ...)``, the dataset's dtype).
+
+    Read afresh (a live writer may have appended since), refused if the dataset holds fewer rows
+    or a chunk of them lies past the end of the file, every checksum verified; a torn append of
+    a killed writer, or a rewrite a live writer is half way through, reads as
+    :func:`warpratchet._h5verify.read_rows` reads it. Any failure is one :class:`ArchiveError`.
+    """
+    where = f"{group.name}/{name}"
+    with reading(path, where):
+        ds = refresh(group[name])
+        if ds.shape[0] < n:
+            raise ArchiveError(f"{path}: {where} has {ds.shape[0]} rows, {n} are valid")
+        check_extent(path, ds, n)
+        return read_rows(ds, n)
 
 
 def nonfinite(state: dict[str, np.ndarray]) -> dict[str, int]:

@@ -28,11 +28,19 @@ def _need(module: str) -> Any:
 
 def attributes(arc, group: str, name: str) -> dict[str, str]:
     """``units`` and ``long_name`` of ``/group/name`` as stored (format v1: as documented)."""
-    attrs = arc._file[group][name].attrs
+    attrs = arc.h5[group][name].attrs
     if "units" in attrs and "long_name" in attrs:
         return {"units": str(attr_value(attrs["units"])), "long_name": str(attr_value(attrs["long_name"]))}
     units, long_name = describe(group, name)
     return {"units": units, "long_name": long_name}
+
+
+def _history(arc):
+    """The archive's :class:`~warpratchet.history.History` (ValueError for an archive without one)."""
+    history = arc.history
+    if history is None:
+        raise ValueError(f"{arc.path} has no history (its features: {', '.join(arc.features) or 'none'})")
+    return history
 
 
 def _rows(arc, group: str) -> tuple[dict, tuple[str, ...]]:
@@ -40,10 +48,7 @@ def _rows(arc, group: str) -> tuple[dict, tuple[str, ...]]:
     if group == "series":
         return arc.series, SERIES_FIELDS
     if group == "history":
-        history = arc.history
-        if history is None:
-            raise ValueError(f"{arc.path} has no history (its features: {', '.join(arc.features) or 'none'})")
-        return {k: np.asarray(v) for k, v in history.rows.items()}, HISTORY_FIELDS
+        return {k: np.asarray(v) for k, v in _history(arc).rows.items()}, HISTORY_FIELDS
     raise ValueError(f"group = {group!r} is not 'series' or 'history'")
 
 
@@ -85,9 +90,7 @@ def dataset(arc, group: str = "series"):
         }
         return xr.Dataset(data, coords=coords, attrs=attrs)
     if group == "history":
-        history = arc.history
-        if history is None:
-            raise ValueError(f"{arc.path} has no history (its features: {', '.join(arc.features) or 'none'})")
+        history = _history(arc)
         rows, blocks = history.rows, history.block_rows
         coords = {
             "step": ("step", np.asarray(rows["step"]), attributes(arc, "history", "step")),

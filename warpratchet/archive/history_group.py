@@ -14,13 +14,12 @@ from __future__ import annotations
 from typing import Any
 
 import h5py
-import numpy as np
 
 from ..history import BLOCK_FIELDS, HISTORY_FIELDS, History
-from .checks import check_extent, reading
+from .checks import read_counter, reading, valid_rows
 from .checks import refresh as _refresh
-from .names import HISTORY_COUNTERS, ArchiveError
-from .rows import Rows
+from .names import HISTORY_COUNTERS
+from .rows import Rows, fill_rows
 
 __all__ = [
     "HistoryWriter",
@@ -99,20 +98,9 @@ class HistoryWriter:
         self.blocks.trim()
 
 
-def _count(path: str, f: h5py.File, key: str) -> int:
-    where = HISTORY_COUNTERS[key]
-    with reading(path, f"/{where}"):
-        ds = _refresh(f[where])
-        check_extent(path, ds)
-        n = int(ds[0])
-    if n < 0:
-        raise ArchiveError(f"{path}: /{where} = {n} is negative; the archive is corrupted")
-    return n
-
-
 def history_counts(path: str, f: h5py.File) -> tuple[int, int]:
     """The valid ``(rows, block records)`` of the ``/history`` of an open archive."""
-    return _count(path, f, "rows"), _count(path, f, "blocks")
+    return read_counter(path, f, HISTORY_COUNTERS["rows"]), read_counter(path, f, HISTORY_COUNTERS["blocks"])
 
 
 def history_settings(path: str, f: h5py.File, settings: dict[str, Any]) -> dict[str, Any]:
@@ -133,16 +121,10 @@ def history_settings(path: str, f: h5py.File, settings: dict[str, Any]) -> dict[
 def read_history(path: str, f: h5py.File, settings: dict[str, Any]) -> History:
     """The :class:`History` stored in an open archive (its valid records), ready to continue."""
     n_rows, n_blocks = history_counts(path, f)
-    g = f["history"]
-    rows, blocks = {}, {}
-    for names, n, out in ((HISTORY_FIELDS, n_rows, rows), (BLOCK_FIELDS, n_blocks, blocks)):
-        for name in names:
-            with reading(path, f"/history/{name}"):
-                ds = _refresh(g[name])
-                if ds.shape[0] < n:
-                    raise ArchiveError(f"{path}: /history/{name} has {ds.shape[0]} rows, {n} are valid")
-                check_extent(path, ds, n)
-                out[name] = ds[:n]
+    with reading(path, "/history"):
+        g = f["history"]
+    rows = {name: valid_rows(path, g, name, n_rows) for name in HISTORY_FIELDS}
+    blocks = {name: valid_rows(path, g, name, n_blocks) for name in BLOCK_FIELDS}
     with reading(path, "/history/block_indices"):
         indices = _refresh(g["block_indices"])[:]
     return History.restore(rows, blocks, indices, **history_settings(path, f, settings))
@@ -163,14 +145,8 @@ def history_info(history: History | None) -> dict[str, Any] | None:
 
 def write_history(f: h5py.File, history: History) -> None:
     """Put the records of ``history`` into the freshly created ``/history`` of ``f`` (a rebuilt archive)."""
-    g = f["history"]
     for names, records, key in (
         (HISTORY_FIELDS, history.rows, "rows"),
         (BLOCK_FIELDS, history.block_rows, "blocks"),
     ):
-        n = len(records[names[0]])
-        for name in names:
-            if n:
-                g[name].resize(n, axis=0)
-                g[name][...] = np.asarray(records[name], dtype=g[name].dtype).reshape(g[name].shape)
-        f[HISTORY_COUNTERS[key]][0] = n
+        fill_rows(f["history"], {name: records[name] for name in names}, f[HISTORY_COUNTERS[key]])

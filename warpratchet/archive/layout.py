@@ -199,7 +199,6 @@ def create(
     ``/history`` is created too, empty, and listed in ``/@features``.
     """
     n = int(settings["points"])
-    m = int(indices.size)
     _set_attrs(f, {"format": FORMAT, "format_version": FORMAT_VERSION, "created": created})
     features = ["history"] if history is not None else []
     f.attrs["features"] = np.bytes_(",".join(features).encode())  # names.KNOWN_FEATURES
@@ -215,23 +214,8 @@ def create(
         if np.any(values != FILL[name]):  # a uniform field stays a fill value, no storage
             ds.write_direct(np.ascontiguousarray(values, dtype=ds.dtype))
 
-    g = _group(f, "series")
-    scale = _rows(g, "step", np.int64)
-    scale.make_scale("step")
-    for name in SERIES_FIELDS[1:]:
-        _rows(g, name, np.int64 if name in INT_SERIES else np.float64).dims[0].attach_scale(scale)
-
-    g = _group(f, "snapshots")
-    width = max(1, min(m, STATE_CHUNK))
-    points = _dataset(g, "indices", data=indices.astype(np.int64), maxshape=(None,), chunks=(width,))
-    # A dimension scale, so that netCDF readers name the axis instead of inventing a phony one.
-    points.make_scale("point")
-    scale = _rows(g, "step", np.int64)
-    scale.make_scale("step")
-    for name in SNAPSHOT_FIELDS:
-        ds = _rows(g, name, np.float64, m)
-        ds.dims[0].attach_scale(scale)
-        ds.dims[1].attach_scale(points)
+    _step_rows(_group(f, "series"), SERIES_FIELDS, INT_SERIES)
+    _sampled_rows(_group(f, "snapshots"), ("indices", "point"), ("step", *SNAPSHOT_FIELDS), indices)
 
     g = _group(f, "progress")
     for key, path in COUNTERS[FORMAT_VERSION].items():
@@ -256,28 +240,44 @@ def _history_group(f: h5py.File, history: Any) -> None:
     start empty; the history's settings (rows per decade, blocks, block subsample size) are
     attributes of the group; the subsample's indices are ``block_indices``.
     """
-    from ..history import HISTORY_FIELDS, INT_FIELDS
+    from ..history import BLOCK_FIELDS, HISTORY_FIELDS, INT_FIELDS
 
     indices = np.asarray(history.block_indices, dtype=np.int64)
-    m = int(indices.size)
     g = _group(f, "history")
-    _set_attrs(g, {"per_decade": history.per_decade, "blocks": history.blocks, "block_points": m})
-    scale = _rows(g, "step", np.int64)
-    scale.make_scale("step")
-    for name in HISTORY_FIELDS[1:]:
-        _rows(g, name, np.int64 if name in INT_FIELDS else np.float64).dims[0].attach_scale(scale)
-    width = max(1, min(m, STATE_CHUNK))
-    points = _dataset(g, "block_indices", data=indices, maxshape=(None,), chunks=(width,))
-    points.make_scale("block_point")
-    scale = _rows(g, "block_step", np.int64)
-    scale.make_scale("block_step")
-    for name in ("block_gain", "block_ftle"):
-        ds = _rows(g, name, np.float64, m)
-        ds.dims[0].attach_scale(scale)
-        ds.dims[1].attach_scale(points)
+    attrs = {"per_decade": history.per_decade, "blocks": history.blocks, "block_points": int(indices.size)}
+    _set_attrs(g, attrs)
+    _step_rows(g, HISTORY_FIELDS, INT_FIELDS)
+    _sampled_rows(g, ("block_indices", "block_point"), BLOCK_FIELDS, indices)
     progress = f["progress"]
     for path in HISTORY_COUNTERS.values():
         _counter(progress, path.split("/")[1], 0)
+
+
+def _step_rows(group: h5py.Group, names: tuple[str, ...], int_names: tuple[str, ...]) -> None:
+    """Empty rows ``names`` of ``group``: the first (int64, the step of each row) is their dimension
+    scale, the others are int64 if in ``int_names``, float64 otherwise."""
+    scale = _rows(group, names[0], np.int64)
+    scale.make_scale(names[0])
+    for name in names[1:]:
+        _rows(group, name, np.int64 if name in int_names else np.float64).dims[0].attach_scale(scale)
+
+
+def _sampled_rows(
+    group: h5py.Group, points: tuple[str, str], names: tuple[str, ...], indices: np.ndarray
+) -> None:
+    """Empty rows of a fixed subsample of points: ``names[0]`` the step of each row, the others
+    float64 ``(rows, M)`` on the steps and on the ``M`` points ``indices``, stored as
+    ``points = (name, dimension)``. Both axes are dimension scales, so that netCDF readers name
+    them instead of inventing phony ones."""
+    width = max(1, min(int(indices.size), STATE_CHUNK))
+    kept = _dataset(group, points[0], data=indices.astype(np.int64), maxshape=(None,), chunks=(width,))
+    kept.make_scale(points[1])
+    scale = _rows(group, names[0], np.int64)
+    scale.make_scale(names[0])
+    for name in names[1:]:
+        ds = _rows(group, name, np.float64, int(indices.size))
+        ds.dims[0].attach_scale(scale)
+        ds.dims[1].attach_scale(kept)
 
 
 def _dataset(group: h5py.Group, name: str, **kw: Any) -> h5py.Dataset:

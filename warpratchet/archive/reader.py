@@ -21,15 +21,14 @@ import h5py
 import numpy as np
 
 from .._files import open_h5
-from .._h5verify import first_line, read_rows
+from .._h5verify import first_line
 from ..ensemble import Ensemble
 from ..history import History
 from ..params import MapParams
 from ..spec import SAMPLERS, RunSpec, attr_value
 from . import progress
 from . import transport as _transport
-from .checks import check_extent, reading
-from .checks import refresh as _refresh
+from .checks import read_counter, reading, valid_rows
 from .history_group import history_info, read_history
 from .layout import read_settings
 from .names import (
@@ -40,7 +39,7 @@ from .names import (
     ArchiveError,
     ArchiveWarning,
 )
-from .slots import newest_good, read_state, slot_step, slot_steps
+from .slots import newest_good, read_state, slot_steps
 from .snapshots import Snapshots, read_snapshots
 
 __all__ = ["Snapshots", "Archive", "open_archive"]
@@ -112,14 +111,7 @@ class Archive:
 
     # -- live data ------------------------------------------------------------------------------
     def _counter(self, key: str) -> int:
-        path = self._counters[key]
-        with reading(self.path, f"/{path}"):
-            ds = _refresh(self._file[path])
-            check_extent(self.path, ds)
-            n = int(ds[0])
-        if n < 0 and key != "target":
-            raise ArchiveError(f"{self.path}: /{path} = {n} is negative; the archive is corrupted")
-        return n
+        return read_counter(self.path, self._file, self._counters[key], signed=key == "target")
 
     @property
     def rows(self) -> int:
@@ -161,23 +153,14 @@ class Archive:
         ``wall_time`` the chunk's kernel seconds, ``unix_time`` when the row was written.
         """
         n = self.rows
-        out = {}
-        for name in SERIES_FIELDS:
-            with reading(self.path, f"/series/{name}"):
-                ds = _refresh(self._file["series"][name])
-                if ds.shape[0] < n:
-                    raise ArchiveError(f"{self.path}: /series/{name} has {ds.shape[0]} rows, {n} are valid")
-                check_extent(self.path, ds, n)
-                out[name] = read_rows(ds, n)
-        return out
+        with reading(self.path, "/series"):
+            g = self._file["series"]
+        return {name: valid_rows(self.path, g, name, n) for name in SERIES_FIELDS}
 
     @property
     def snapshots(self) -> Snapshots:
         """Snapshots recorded so far (``S`` may be 0); see :class:`Snapshots`."""
         return read_snapshots(self.path, self._file, self.snapshot_count)
-
-    def _slot_step(self, name: str) -> int:
-        return slot_step(self.path, self._file, name)
 
     def _slot_steps(self, problems: list[str] | None = None) -> list[tuple[int, str]]:
         """Complete slots as ``(step, name)``, newest first (:func:`.slots.slot_steps`)."""

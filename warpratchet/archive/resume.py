@@ -34,6 +34,7 @@ from .history_group import history_counts, history_settings, write_history
 from .layout import kernel_constants
 from .names import COUNTERS, FORMAT_VERSION, SERIES_FIELDS, SNAPSHOT_FIELDS, ArchiveError, ArchiveWarning
 from .reader import Archive, Snapshots
+from .rows import fill_rows
 
 __all__ = ["Salvage", "salvage"]
 
@@ -68,28 +69,14 @@ class Salvage:
     def write(self, f: h5py.File) -> None:
         """Put the rows, snapshots and checkpoint into a freshly created layout ``f``."""
         counters = COUNTERS[FORMAT_VERSION]
-        g = f["series"]
-        for name in SERIES_FIELDS:
-            if self.rows:
-                g[name].resize(self.rows, axis=0)
-                g[name][:] = self.series[name]
-        f[counters["series"]][0] = self.rows
-        g = f["snapshots"]
+        fill_rows(f["series"], self.series, f[counters["series"]])
         snaps = self.snapshots
-        for name in ("step", *SNAPSHOT_FIELDS):
-            if len(snaps):
-                g[name].resize(len(snaps), axis=0)
-                g[name][...] = snaps.steps if name == "step" else getattr(snaps, name)
-        f[counters["snapshots"]][0] = len(snaps)
+        kept = {"step": snaps.steps, **{name: getattr(snaps, name) for name in SNAPSHOT_FIELDS}}
+        fill_rows(f["snapshots"], kept, f[counters["snapshots"]])
         if self.history is not None:
             write_history(f, self.history)
         if self.transport_rows is not None:
-            g, rows = f["transport"], int(self.transport_rows["step"].size)
-            for name in ("step", "counts"):
-                g[name].resize(rows, axis=0)
-                if rows:
-                    g[name][...] = self.transport_rows[name]
-            g["rows"][0] = rows
+            fill_rows(f["transport"], self.transport_rows, f["transport"]["rows"])
         if self.step != self.layout["initial_step"]:
             slot = f["checkpoint"]["a"]
             for name in STATE_FIELDS:

@@ -3,13 +3,14 @@
 :meth:`Rows.put` writes the next row of every dataset (growing them :data:`ROW_CHUNK` rows at a
 time), :meth:`Rows.commit` makes the rows put since the last commit valid by raising the
 counter, :meth:`Rows.trim` cuts the datasets to the valid rows when the archive is closed (so a
-closed archive holds exactly its rows). Rows are written with low-level HDF5 calls: h5py's
+closed archive holds exactly its rows); :func:`fill_rows` puts a rebuilt archive's kept rows
+in at once. Rows are written with low-level HDF5 calls: h5py's
 indexing costs ~0.2 ms per call, which at small chunks would dominate the kernel time.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import h5py
@@ -18,12 +19,26 @@ from h5py import h5s
 
 from .layout import ROW_CHUNK
 
-__all__ = ["Rows", "set_counter"]
+__all__ = ["Rows", "set_counter", "fill_rows"]
 
 
 def set_counter(ds: h5py.Dataset, value: int) -> None:
     """Write a ``(1,)`` int64 counter (low-level: no h5py indexing machinery per chunk)."""
     ds.id.write(h5s.ALL, h5s.ALL, np.array([value], dtype=np.int64))
+
+
+def fill_rows(group: h5py.Group, rows: Mapping[str, Any], counter: h5py.Dataset) -> None:
+    """Put ``rows`` (name: its values, ``(n, ...)``, the same ``n`` for every name) into the empty
+    datasets of a freshly created ``group`` and set ``counter`` to ``n`` (a rebuilt archive)."""
+    n = 0
+    for name, values in rows.items():
+        ds = group[name]
+        values = np.asarray(values, dtype=ds.dtype)
+        n = len(values)
+        if n:
+            ds.resize(n, axis=0)
+            ds[...] = values.reshape(ds.shape)
+    set_counter(counter, n)
 
 
 class Rows:

@@ -14,10 +14,10 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .._h5verify import read_rows
 from ..ensemble import STATE_FIELDS
 from ..observables import acceleration, lyapunov
-from .checks import check_extent, reading
+from ..sampling import salted_subsample
+from .checks import check_extent, reading, valid_rows
 from .checks import refresh as _refresh
 from .names import SNAPSHOT_FIELDS, ArchiveError
 
@@ -58,8 +58,7 @@ class Snapshots:
 
 def snapshot_indices(points: int, m: int, seed: int | None) -> np.ndarray:
     """The sorted int64 indices of ``m`` of ``points`` points, fixed by ``seed`` (None as 0)."""
-    rng = np.random.default_rng([_SNAPSHOT_SALT, seed or 0])
-    return np.sort(rng.choice(points, size=m, replace=False)).astype(np.int64)
+    return salted_subsample(points, seed, m, _SNAPSHOT_SALT)
 
 
 def snapshot_row(live: dict[str, np.ndarray], indices: np.ndarray, step: int) -> dict[str, Any]:
@@ -79,16 +78,11 @@ def read_snapshots(path: str, f: h5py.File, n: int) -> Snapshots:
     with reading(path, "/snapshots"):
         g = f["snapshots"]
         indices = _refresh(g["indices"])[:]
-        steps = _refresh(g["step"])
-        if steps.shape[0] < n:
-            raise ArchiveError(f"{path}: /snapshots/step has {steps.shape[0]} rows, {n} are valid")
         check_extent(path, g["indices"])
-        check_extent(path, steps, n)
-        fields = {"steps": read_rows(steps, n), "indices": indices}
-        for name in SNAPSHOT_FIELDS:
-            ds = _refresh(g[name])
-            check_extent(path, ds, n)
-            if ds.shape[0] < n or (n and ds.shape[1] != indices.size):
-                raise ArchiveError(f"{path}: /snapshots/{name} has shape {ds.shape}, expected ({n}, M)")
-            fields[name] = read_rows(ds, n).reshape(n, indices.size)
+    fields = {"steps": valid_rows(path, g, "step", n), "indices": indices}
+    for name in SNAPSHOT_FIELDS:
+        rows = valid_rows(path, g, name, n)
+        if n and rows.shape[1] != indices.size:
+            raise ArchiveError(f"{path}: /snapshots/{name} has shape {rows.shape}, expected ({n}, M)")
+        fields[name] = rows.reshape(n, indices.size)
     return Snapshots(**fields)

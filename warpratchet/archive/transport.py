@@ -26,7 +26,7 @@ import numpy as np
 from ..glossary import describe
 from ..transport.fits import GROUPS
 from ..transport.histograms import BINS, CARRY_FIELDS, HISTOGRAMS
-from .checks import reading
+from .checks import read_counter, reading, valid_rows
 from .checks import refresh as _refresh
 from .layout import ROW_CHUNK, STATE_CHUNK, _group, _set_attrs
 from .names import SLOTS, ArchiveError
@@ -165,16 +165,10 @@ def read_slot(f: h5py.File, path: str, slot: str, points: int) -> Any:
 
 def read_rows(f: h5py.File, path: str) -> dict[str, np.ndarray]:
     """The valid rows: ``step`` ``(R,)`` int64, ``counts`` ``(R, 3, BINS)`` int64."""
+    n = read_counter(path, f, "transport/rows")
     with reading(path, "/transport"):
         g = f["transport"]
-        n = int(_refresh(g["rows"])[0])
-        out = {}
-        for name in ("step", "counts"):
-            ds = _refresh(g[name])
-            if ds.shape[0] < n:
-                raise ArchiveError(f"{path}: /transport/{name} has {ds.shape[0]} rows, {n} are valid")
-            out[name] = ds[:n]
-        return out
+    return {name: valid_rows(path, g, name, n) for name in ("step", "counts")}
 
 
 def restore(

@@ -15,10 +15,11 @@ from typing import Any
 import numpy as np
 
 from .._h5verify import first_line, read_everything
-from .checks import listed, nonfinite
+from .checks import listed, nonfinite, read_counter
 from .history_group import history_counts
 from .names import COUNTERS, SLOTS, ArchiveError
 from .reader import Archive
+from .slots import slot_step
 
 __all__ = ["verify_archive"]
 
@@ -30,8 +31,8 @@ def _increasing(values: np.ndarray) -> bool:
 def _check_history(arc: Archive, problems: list[str]) -> None:
     """The ``/history`` counters fit their datasets and its steps grow."""
     try:
-        rows, blocks = history_counts(arc.path, arc._file)
-        g = arc._file["history"]
+        rows, blocks = history_counts(arc.path, arc.h5)
+        g = arc.h5["history"]
         for count, name, what in ((rows, "step", "history_rows"), (blocks, "block_step", "block_rows")):
             if count > g[name].shape[0]:
                 problems.append(f"progress/{what} = {count} but /history/{name} has {g[name].shape[0]} rows")
@@ -59,11 +60,11 @@ def verify_archive(path: str | os.PathLike) -> tuple[list[str], dict[str, Any]]:
     path = os.fspath(path)
     problems: list[str] = []
     with Archive(path) as arc:
-        counts = read_everything(arc._file, path, problems)
+        counts = read_everything(arc.h5, path, problems)
         checked = {"format": "warpratchet-archive", "format_version": arc.format_version, **counts}
-        for key in COUNTERS[arc.format_version]:
+        for key, where in COUNTERS[arc.format_version].items():
             try:
-                value = arc._counter(key)
+                value = read_counter(path, arc.h5, where, signed=key == "target")
             except ArchiveError as exc:
                 problems.append(str(exc).removeprefix(f"{path}: "))
                 continue
@@ -71,12 +72,12 @@ def verify_archive(path: str | os.PathLike) -> tuple[list[str], dict[str, Any]]:
                 continue
             group = "series" if key == "series" else "snapshots"
             try:
-                size = arc._file[group]["step"].shape[0]
+                size = arc.h5[group]["step"].shape[0]
             except (OSError, KeyError, RuntimeError) as exc:
                 problems.append(f"/{group}/step: damaged metadata ({first_line(exc)})")
                 continue
             if value > size:
-                problems.append(f"{COUNTERS[arc.format_version][key]} = {value} but /{group} has {size} rows")
+                problems.append(f"{where} = {value} but /{group} has {size} rows")
         if "history" in arc.features:
             _check_history(arc, problems)
         for what, read in (
@@ -92,7 +93,7 @@ def verify_archive(path: str | os.PathLike) -> tuple[list[str], dict[str, Any]]:
         states = [("initial", f"the initial state (step {arc.initial_step})")]
         for slot in SLOTS:
             try:
-                step = arc._slot_step(slot)
+                step = slot_step(path, arc.h5, slot)
             except ArchiveError:
                 continue
             if step >= 0:
