@@ -37,15 +37,18 @@ def _start(p: MapParams, n: int = 1003, seed: int = 3) -> tuple[dict, np.ndarray
     return Ensemble(p, x, q, threads=1).state(), x
 
 
-def _launches(p, state, carry, step0, pieces, body):
-    """Advance fresh arrays with ``advance_map_transport`` in launches of ``pieces`` steps."""
+def _launches(p, state, carry, step0, pieces, body, block_rows=8):
+    """Advance fresh arrays with ``advance_map_transport`` in launches of ``pieces`` steps
+    (``block_rows``: the CPU hooks' decoding, 8-row blocks or the row loop alone)."""
     arrays = [wp.array(state[k], dtype=wp.int64 if k == "winding" else wp.float64) for k in FIELDS]
     extra = [wp.array(carry[k], dtype=wp.int64) for k in CARRY_FIELDS]
     counts = np.zeros(3 * BINS, dtype=np.int64)
     step = step0
     for steps in pieces:
         launch = wp.zeros(3 * BINS, dtype=wp.int64)
-        advance_map_transport.launch("cpu", arrays, [*extra, launch], step, steps, p, body=body)
+        advance_map_transport.launch(
+            "cpu", arrays, [*extra, launch], step, steps, p, body=body, block_rows=block_rows
+        )
         counts += launch.numpy()
         step += steps
     out = {k: a.numpy() for k, a in zip(FIELDS, arrays, strict=True)}
@@ -63,9 +66,12 @@ def test_both_step_bodies_count_exactly_what_the_numpy_twin_counts(p):
     carry = twin.initial_carry(p, state["x"], 5)
     expected_state, expected_carry, expected = twin.advance(p, state, carry, 1500, step0=5)
     assert expected.sum() > 1000  # events happened
-    for body, pieces in (("cpu", [1500]), ("cpu", [3, 97, 1, 8, 600, 791]), ("portable", [700, 800])):
-        got_state, got_carry, got = _launches(p, state, carry, 5, pieces, body)
-        np.testing.assert_array_equal(got, expected, err_msg=f"{body} {pieces}")
+    # block_rows=1: every row through the row loop, the path of a CPU without GFNI
+    runs = [("cpu", [1500], 8), ("cpu", [3, 97, 1, 8, 600, 791], 8), ("cpu", [1500], 1)]
+    runs += [("cpu", [3, 97, 1, 8, 600, 791], 1), ("portable", [700, 800], 8)]
+    for body, pieces, block_rows in runs:
+        got_state, got_carry, got = _launches(p, state, carry, 5, pieces, body, block_rows)
+        np.testing.assert_array_equal(got, expected, err_msg=f"{body} {pieces} block_rows={block_rows}")
         for name in CARRY_FIELDS:
             np.testing.assert_array_equal(got_carry[name], expected_carry[name], err_msg=f"{name} {body}")
         for name in FIELDS:  # the orbit is the plain kernel's (the twin steps warpratchet.reference)
@@ -89,11 +95,12 @@ def test_runs_open_for_a_million_steps_close_exactly(body):
         "flight_start": np.full(77, 3, dtype=np.int64),
     }
     _, expected_carry, expected = twin.advance(p, state, carry, 300, step0=step0)
-    _, got_carry, got = _launches(p, state, carry, step0, [5, 295], body)
-    np.testing.assert_array_equal(got, expected)
+    for block_rows in (8, 1):
+        _, got_carry, got = _launches(p, state, carry, step0, [5, 295], body, block_rows)
+        np.testing.assert_array_equal(got, expected, err_msg=f"block_rows={block_rows}")
+        for name in CARRY_FIELDS:
+            np.testing.assert_array_equal(got_carry[name], expected_carry[name], err_msg=name)
     assert expected[0, 19] > 0 and expected[1, 19] > 0 and expected[2, 19] > 0
-    for name in CARRY_FIELDS:
-        np.testing.assert_array_equal(got_carry[name], expected_carry[name], err_msg=name)
 
 
 @pytest.mark.parametrize("init", ["strip", "torus"])
@@ -194,3 +201,10 @@ def test_twin_steps_like_the_reference():
     expected = reference.advance(p, state, 40, step0=3)
     for name in FIELDS:
         np.testing.assert_array_equal(got[name], expected[name], err_msg=name)
+
+
+def test_a_block_size_outside_the_decoders_is_refused():
+    p = MapParams(3.0, 0.1, 0.01)
+    state, _ = _start(p, n=40)
+    with pytest.raises(ValueError, match="block_rows = 16 is not one of the allowed values 1, 8"):
+        _launches(p, state, twin.initial_carry(p, state["x"], 0), 0, [8], "cpu", 16)

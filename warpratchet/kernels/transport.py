@@ -199,13 +199,19 @@ TRANSPORT = Variant(
 class _TransportKernel(AdvanceKernel):
     """:class:`AdvanceKernel` whose :meth:`launch` adds the launch's scratch array itself."""
 
-    def launch(self, device, state, extra, step0, steps, params, body=None) -> None:
+    def launch(self, device, state, extra, step0, steps, params, body=None, block_rows: int = 8) -> None:
         """:meth:`AdvanceKernel.launch` with ``extra`` = the carry arrays and the launch's histogram
-        array (:data:`CARRY_FIELDS`, then ``(3 * BINS,)`` int64, added to)."""
+        array (:data:`CARRY_FIELDS`, then ``(3 * BINS,)`` int64, added to). ``block_rows``: the CPU
+        hooks' largest block of rows decoded at once: 8, or 1 (row by row, the path of a CPU
+        without GFNI; the same counts, both paths checked by ``tests/test_transport.py``)."""
+        if block_rows not in (1, 8):
+            raise ValueError(f"block_rows = {block_rows} is not one of the allowed values 1, 8")
         # One scratch per launch: Warp runs a CPU launch's threads one after the other (its own
         # CPU atomics are plain adds for that reason), so they share it; concurrent launches
         # (CPU shards) each get their own. The portable hooks never touch it.
-        size = SCRATCH_BYTES if wp.get_device(device).is_cpu else 0
+        # A scratch one byte longer asks the CPU hooks for the row loop alone (.transport_cpu); the
+        # arrays struct holds arrays only (Ensemble sizes its per-point memory from it).
+        size = SCRATCH_BYTES + (block_rows == 1) if wp.get_device(device).is_cpu else 0
         scratch = wp.empty(size, dtype=wp.uint8, device=device)
         super().launch(device, state, [*extra, scratch], step0, steps, params, body)
 

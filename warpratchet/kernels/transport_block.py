@@ -4,7 +4,16 @@ A C++ snippet, :data:`BLOCK_CPU`, inserted into :data:`~.transport_cpu.DECODE_CP
 by row loop (it uses that snippet's trackers, tallies and helpers): each full block of 8 rows is
 transposed into bit planes (one byte per lane, bit i = row i), and its visits to B and gain
 changes are found with bit tricks on the planes. Without AVX-512 and GFNI it compiles to nothing
-and every row goes through the loop. The counts are the loop's (``tests/test_transport.py``).
+and every row goes through the loop; a launch with ``block_rows=1`` takes that path on any CPU,
+so the tests check both against the NumPy twin, count for count (``tests/test_transport.py``).
+
+Why 8 rows, not 16 (measured, 10^6 points at K = 3, 1 thread, launches of 200 steps, one process,
+the block size chosen per launch): 16-row blocks (two 8-row transposes interleaved into 16 bits a
+lane, vpopcntw, the same bit tricks on 512-bit vectors; exact against the twin) decode 16 rows in
+~310 instructions against ~209 for 8, but on this Zen 4-class CPU a 512-bit operation takes two
+256-bit slots, so per row they cost as much: best launch 177 ms (16) vs 171-176 ms (8), plain
+160 ms, the same kernel with its decoding skipped 154 ms. Bit-plane work costs the same per bit
+at any block size; only fewer operations per block would pay.
 """
 
 __all__ = ["BLOCK_CPU"]
@@ -28,25 +37,26 @@ _STAGE2 = [
 _STAGE2 += [128 + (7 - p) * 4 + j for j in range(4) for p in range(8)]
 _STAGE4 = [[(b * 4 + lane // 8) * 8 + 7 - lane % 8 for lane in range(32)] for b in range(4)]
 
-#: The block decoding (module docstring), for 32 lanes.
-BLOCK_CPU = f"""
-#if defined(__GFNI__) && defined(__AVX512BW__)
-for (; r0 + 8 <= rows; r0 += 8) {{
-    typedef char i8x64 __attribute__((vector_size(64)));
-    typedef unsigned char u8x64 __attribute__((ext_vector_type(64)));
-    typedef unsigned char u8x128 __attribute__((ext_vector_type(128)));
-    typedef long long i64x8 __attribute__((vector_size(64)));
-    const long long T = 0x8040201008040201LL; /* byte j = 1 << j: the transpose */
-    const i64x8 transpose = {{T, T, T, T, T, T, T, T}};
+#: The bit planes of 8 buffered rows (a lambda for both block sizes): ``planes8(r, out)`` sets
+#: ``out[0..2]`` to the gain code's planes and ``out[3]`` to the in_strip plane of rows r .. r+7
+#: (byte l of each: bit i = lane l at row r + i).
+_PLANES8 = f"""
+typedef char i8x64 __attribute__((vector_size(64)));
+typedef unsigned char u8x64 __attribute__((ext_vector_type(64)));
+typedef unsigned char u8x128 __attribute__((ext_vector_type(128)));
+typedef long long i64x8 __attribute__((vector_size(64)));
+const long long T = 0x8040201008040201LL; /* byte j = 1 << j: the transpose */
+const i64x8 transpose = {{T, T, T, T, T, T, T, T}};
+auto planes8 = [&](const int r, u8v* out) {{
     u8x64 rows01, rows23, rows45, rows67;
-    __builtin_memcpy(&rows01, buffer + r0 * N + 0, 64);
-    __builtin_memcpy(&rows23, buffer + r0 * N + 64, 64);
-    __builtin_memcpy(&rows45, buffer + r0 * N + 128, 64);
-    __builtin_memcpy(&rows67, buffer + r0 * N + 192, 64);
+    __builtin_memcpy(&rows01, buffer + r * N + 0, 64);
+    __builtin_memcpy(&rows23, buffer + r * N + 64, 64);
+    __builtin_memcpy(&rows45, buffer + r * N + 128, 64);
+    __builtin_memcpy(&rows67, buffer + r * N + 192, 64);
 #define GF_T(v) ((u8x64)__builtin_ia32_vgf2p8affineqb_v64qi((i8x64)transpose, (i8x64)(v), 0))
     const u8x64 s01 = GF_T(rows01), s23 = GF_T(rows23), s45 = GF_T(rows45), s67 = GF_T(rows67);
     u8x64 strip_rows = 0;
-    __builtin_memcpy(&strip_rows, strip + r0, 32);
+    __builtin_memcpy(&strip_rows, strip + r, 32);
     /* x = the masks' bytes, matrix T: bit i of each byte becomes bit 7 - i */
     const u8x64 strip_reversed =
         (u8x64)__builtin_ia32_vgf2p8affineqb_v64qi((i8x64)strip_rows, (i8x64)transpose, 0);
@@ -62,10 +72,19 @@ for (; r0 + 8 <= rows; r0 += 8) {{
     const u8x64 t01 = GF_T(g01), t23 = GF_T(g23);
 #undef GF_T
     const u8x128 planes = __builtin_shufflevector(t01, t23, {_indices(range(128))});
-    const u8v G0 = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[0])});
-    const u8v G1 = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[1])});
-    const u8v G2 = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[2])});
-    const u8v I = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[3])});
+    out[0] = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[0])});
+    out[1] = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[1])});
+    out[2] = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[2])});
+    out[3] = __builtin_shufflevector(planes, planes, {_indices(_STAGE4[3])});
+}};
+"""
+
+#: 8-row blocks (module docstring), for 32 lanes; needs ``planes8``.
+_BLOCK8 = """
+for (; block_rows >= 8 && r0 + 8 <= rows; r0 += 8) {
+    u8v P[4];
+    planes8(r0, P);
+    const u8v G0 = P[0], G1 = P[1], G2 = P[2], I = P[3];
     const u8v zero = 0;
     const u8v valid_mask = valid_bytes * (u8v)0xFF;
     /* -- returns: V, bit i = a visit at row i -- */
@@ -116,6 +135,9 @@ for (; r0 + 8 <= rows; r0 += 8) {{
     u8v last_row;
     __builtin_memcpy(&last_row, buffer + (r0 + 7) * N, N);
     fcode = gain_code(last_row);
-}}
-#endif
+}
 """
+
+#: The block decoding (module docstring), for 32 lanes: blocks of 8 rows where the CPU has AVX-512
+#: with GFNI and ``block_rows`` (a C++ int of the decoder, 8 or 1) is 8; the row loop takes the rest.
+BLOCK_CPU = "#if defined(__GFNI__) && defined(__AVX512BW__)\n" + _PLANES8 + _BLOCK8 + "#endif\n"

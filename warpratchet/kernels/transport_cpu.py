@@ -219,7 +219,7 @@ auto lowest8 = [](u8v v) {{ return v & (u8v)(0 - v); }};
 auto gain_code = [](u8v top) {{ return (top & (u8v)1) | ((top >> 5) & (u8v)6); }};
 (void)reverse8; (void)clz8; (void)lowest8; (void)ctz8; (void)popcount8; (void)gain_code;
 """
-    + "int r0 = 0;\n"
+    + f"int r0 = 0;\nconst int block_rows = acc.arrays.scratch.shape[0] == {SCRATCH_BYTES} ? 8 : 1;\n"
     + BLOCK_CPU
     + f"""
 for (int r = r0; r < rows; r++) {{
