@@ -14,6 +14,14 @@ lane, vpopcntw, the same bit tricks on 512-bit vectors; exact against the twin) 
 256-bit slots, so per row they cost as much: best launch 177 ms (16) vs 171-176 ms (8), plain
 160 ms, the same kernel with its decoding skipped 154 ms. Bit-plane work costs the same per bit
 at any block size; only fewer operations per block would pay.
+
+Where a block's time goes (2026-11-26, same set-up, 20 launches a side, one process): the
+decoding is ~10% of a launch (median pair plain/transport 0.97; with the decoding skipped 1.075,
+i.e. the recording alone costs nothing measurable: the plain loop has slots to spare). A block
+is ~208 instructions (``objdump`` of the step and block loops), about 8 cycles a row. Bit
+reversal is one GF2P8AFFINEQB with the reversal matrix (LLVM already lowered the shift-and-mask
+form to it); the run length after the last boundary reuses the reversed block that finds that
+boundary (7 instructions fewer a block).
 """
 
 __all__ = ["BLOCK_CPU"]
@@ -79,14 +87,28 @@ auto planes8 = [&](const int r, u8v* out) {{
 }};
 """
 
-#: 8-row blocks (module docstring), for 32 lanes; needs ``planes8``.
+#: Bit tricks on the bytes of a lane vector: population count, bit reversal (one GF2P8AFFINEQB
+#: with the reversal matrix), lowest set bit, trailing zeros (8 for 0).
+_BYTE_BITS = """
+typedef char i8x32 __attribute__((vector_size(32)));
+typedef long long i64x4 __attribute__((vector_size(32)));
+const i64x4 reversal = {T, T, T, T}; /* as the matrix operand: bit i of each byte becomes bit 7 - i */
+auto popcount8 = [](u8v v) { return __builtin_elementwise_popcount(v); };
+auto reverse8 = [&](u8v v) {
+    return (u8v)__builtin_ia32_vgf2p8affineqb_v32qi((i8x32)v, (i8x32)reversal, 0);
+};
+auto lowest8 = [](u8v v) { return v & (u8v)(0 - v); };
+auto ctz8 = [](u8v v) { return __builtin_elementwise_popcount((v & (u8v)(0 - v)) - (u8v)1); };
+"""
+
+#: 8-row blocks (module docstring), for 32 lanes; needs ``planes8`` and the bit tricks.
 _BLOCK8 = """
 for (; block_rows >= 8 && r0 + 8 <= rows; r0 += 8) {
     u8v P[4];
     planes8(r0, P);
     const u8v G0 = P[0], G1 = P[1], G2 = P[2], I = P[3];
     const u8v zero = 0;
-    const u8v valid_mask = valid_bytes * (u8v)0xFF;
+    const u8v valid_mask = zero - valid_bytes;
     /* -- returns: V, bit i = a visit at row i -- */
     const u8v V = I & valid_mask;
     const bv has = __builtin_convertvector(V != zero, bv);
@@ -103,7 +125,7 @@ for (; block_rows >= 8 && r0 + 8 <= rows; r0 += 8) {
     t[0] += all - popcount8(ge2);
     t[1] += all - popcount8(ge4);
     t[2] += all;
-    age = has ? clz8(V) : age + eight;
+    age = has ? ctz8(reverse8(V)) : age + eight; /* steps after the last visit */
     visited = visited | has;
     /* -- flights: bit i of B = the gain code changes at row i (row 0 against the block before) -- */
     const u8v p0 = fcode & one, p1 = (fcode >> 1) & one, p2 = fcode >> 2;
@@ -117,7 +139,8 @@ for (; block_rows >= 8 && r0 + 8 <= rows; r0 += 8) {
     const bv c8 = tally_flights(moving, up0, length0);
     rare_flights(__builtin_bit_cast(mask_t, ends & ~c8), length0, fcode);
     /* runs that start at a boundary and end at the next one within the block (the last carries) */
-    const u8v last_boundary = reverse8(lowest8(reverse8(B)));
+    const u8v last_reversed = lowest8(reverse8(B)); /* the last boundary, bits reversed */
+    const u8v last_boundary = reverse8(last_reversed);
     const u8v starts = (B ^ last_boundary) & valid_mask;
     const u8v C = ~B;
     const u8v e2 = C >> 1, e4 = e2 & (C >> 2) & (C >> 3);
@@ -131,7 +154,7 @@ for (; block_rows >= 8 && r0 + 8 <= rows; r0 += 8) {
     t[6] += n_up - up2;
     t[7] += n_up - up4;
     t[8] += n_up;
-    flen = ends ? clz8(B) + one : flen + eight;
+    flen = ends ? popcount8(last_reversed - one) + one : flen + eight; /* rows from the last boundary */
     u8v last_row;
     __builtin_memcpy(&last_row, buffer + (r0 + 7) * N, N);
     fcode = gain_code(last_row);
@@ -140,4 +163,4 @@ for (; block_rows >= 8 && r0 + 8 <= rows; r0 += 8) {
 
 #: The block decoding (module docstring), for 32 lanes: blocks of 8 rows where the CPU has AVX-512
 #: with GFNI and ``block_rows`` (a C++ int of the decoder, 8 or 1) is 8; the row loop takes the rest.
-BLOCK_CPU = "#if defined(__GFNI__) && defined(__AVX512BW__)\n" + _PLANES8 + _BLOCK8 + "#endif\n"
+BLOCK_CPU = "#if defined(__GFNI__) && defined(__AVX512BW__)\n" + _PLANES8 + _BYTE_BITS + _BLOCK8 + "#endif\n"

@@ -205,19 +205,9 @@ auto tally_flights = [&](bv ends, bv up, u8v length) {{
     t[8] += __builtin_convertvector(up & c8, u8v) & one;
     return c8;
 }};
-auto popcount8 = [](u8v v) {{ return __builtin_elementwise_popcount(v); }};
-/* bit tricks on bytes: trailing zeros (8 for 0), leading zeros, bit reversal, lowest set bit */
-auto ctz8 = [](u8v v) {{ return __builtin_elementwise_popcount((v & (u8v)(0 - v)) - (u8v)1); }};
-auto reverse8 = [](u8v v) {{
-    v = ((v >> 1) & (u8v)0x55) | ((v & (u8v)0x55) << 1);
-    v = ((v >> 2) & (u8v)0x33) | ((v & (u8v)0x33) << 2);
-    return (v >> 4) | (v << 4);
-}};
-auto clz8 = [&](u8v v) {{ return ctz8(reverse8(v)); }};
-auto lowest8 = [](u8v v) {{ return v & (u8v)(0 - v); }};
 /* the gain code of a gain's top byte (_GAIN_CODES) */
 auto gain_code = [](u8v top) {{ return (top & (u8v)1) | ((top >> 5) & (u8v)6); }};
-(void)reverse8; (void)clz8; (void)lowest8; (void)ctz8; (void)popcount8; (void)gain_code;
+(void)gain_code;
 """
     + f"int r0 = 0;\nconst int block_rows = acc.arrays.scratch.shape[0] == {SCRATCH_BYTES} ? 8 : 1;\n"
     + BLOCK_CPU
