@@ -31,7 +31,7 @@ def _step(p: MapParams, x, q, w, dx, dp):
     q = t - fl
     wrap = q >= 1.0
     q = np.where(wrap, 0.0, q)
-    w = w + (fl + np.where(wrap, 1.0, 0.0))  # the step's gain; integers, so any order is exact
+    w = w + fl + np.where(wrap, 1.0, 0.0)
     x = x + q
     x = np.where(x >= 1.0, x - 1.0, x)
     dp = dp + (p.K * slope) * dx

@@ -197,14 +197,13 @@ def _step_point(x: wp.float64, q: wp.float64, w: wp.float64, dx: wp.float64, dp:
     wrap = q >= one
     q = wp.where(wrap, zero, q)
     lift = wp.where(wrap, one, zero)
-    gain = fl + lift
-    w = w + gain  # integers below 2^53: the same as (w + fl) + lift
+    w = w + fl + lift
     x = x + q
     x = wp.where(x >= one, x - one, x)
     dp = dp + (p.K * slope) * dx
     dx = dx + dp
     in_strip = wp.where(x <= p.b1 or x >= p.right, one, zero)
-    return x, q, w, dx, dp, gain, in_strip
+    return x, q, w, dx, dp, fl + lift, in_strip
 
 
 @wp.func
@@ -270,15 +269,15 @@ q = t - fl;
 const auto wrap = q >= one;
 q = wrap ? zero : q;
 const v_t lift = wrap ? one : zero;
-/* w + (fl + lift) is (w + fl) + lift: integers below 2^53, every sum exact; the gain is a fact */
-const v_t gain = fl + lift;
-w = w + gain;
+const v_t w_fl = w + fl;
+w = w_fl + lift;
 x = x + q;
 const v_t x_wrapped = x - one;
 x = x >= one ? x_wrapped : x;
 const v_t k_slope_dx = k_slope * dx;
 dp = dp + k_slope_dx;
 dx = dx + dp;
+const v_t gain = fl + lift;
 const v_t in_strip = ((x <= p.b1) | (x >= p.right)) ? one : zero;
 __builtin_memcpy(&s.x, &x, sizeof(v_t));
 __builtin_memcpy(&s.q, &q, sizeof(v_t));
