@@ -6,6 +6,8 @@ value for value, for any chunking, thread count, start step and resume; and the 
 the plain kernel's bit for bit.
 """
 
+import threading
+
 import numpy as np
 import pytest
 import warp as wp
@@ -208,3 +210,39 @@ def test_a_block_size_outside_the_decoders_is_refused():
     state, _ = _start(p, n=40)
     with pytest.raises(ValueError, match="block_rows = 16 is not one of the allowed values 1, 8"):
         _launches(p, state, twin.initial_carry(p, state["x"], 0), 0, [8], "cpu", 16)
+
+
+def test_two_threads_on_one_scratch_are_refused_not_miscounted():
+    """The CPU hooks share a launch's scratch on the assumption that Warp runs its threads one
+    after the other; two launches given one scratch and run at once (Warp releases the GIL) break
+    it, and the guard must turn that into an error rather than counts that are silently wrong."""
+    from warpratchet.kernels.transport_cpu import SCRATCH_BYTES
+
+    p = MapParams(3.0, 0.1, 0.01)
+    state, x = _start(p, n=20000)
+    carry = twin.initial_carry(p, x, 0)
+    scratch = wp.zeros(SCRATCH_BYTES, dtype=wp.uint8)
+    start = threading.Barrier(2)
+    errors: list[str] = []
+
+    def launch() -> None:
+        arrays = [wp.array(state[k], dtype=wp.int64 if k == "winding" else wp.float64) for k in FIELDS]
+        extra = [wp.array(carry[k], dtype=wp.int64) for k in CARRY_FIELDS]
+        start.wait()
+        try:
+            # ~0.1 s each: on any machine the two overlap (two cores, or the scheduler's slices)
+            advance_map_transport.launch(
+                "cpu", arrays, [*extra, wp.zeros(3 * BINS, dtype=wp.int64)], 0, 4000, p, scratch=scratch
+            )
+        except RuntimeError as error:
+            errors.append(str(error))
+
+    threads = [threading.Thread(target=launch) for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert errors, "two launches shared one scratch at once and neither noticed"
+    assert "used its scratch at once" in errors[0]
+    # and a launch of its own, the same arrays, is not flagged (every other test relies on it)
+    _launches(p, state, carry, 0, [40], "cpu")

@@ -27,11 +27,12 @@ hooks add to the launch's array directly (one array per CPU launch); integer sum
 on the order.
 """
 
+import numpy as np
 import warp as wp
 
 from .advance import AdvanceKernel, Variant
 from .step import INTERLEAVE, Lanes, load_lanes, store_lane_vector
-from .transport_cpu import BINS, DECODE_CPU, FINISH_CPU, ROWS, SCRATCH_BYTES, STEP_CPU
+from .transport_cpu import BINS, CONFLICT_WORD, DECODE_CPU, FINISH_CPU, ROWS, SCRATCH_BYTES, STEP_CPU
 
 __all__ = ["BINS", "HISTOGRAMS", "CARRY_FIELDS", "advance_map_transport", "TRANSPORT"]
 
@@ -199,21 +200,41 @@ TRANSPORT = Variant(
 class _TransportKernel(AdvanceKernel):
     """:class:`AdvanceKernel` whose :meth:`launch` adds the launch's scratch array itself."""
 
-    def launch(self, device, state, extra, step0, steps, params, body=None, block_rows: int = 8) -> None:
+    def launch(
+        self, device, state, extra, step0, steps, params, body=None, block_rows: int = 8, scratch=None
+    ) -> None:
         """:meth:`AdvanceKernel.launch` with ``extra`` = the carry arrays and the launch's histogram
         array (:data:`CARRY_FIELDS`, then ``(3 * BINS,)`` int64, added to). ``block_rows``: the CPU
         hooks' largest block of rows decoded at once: 8, or 1 (row by row, the path of a CPU
-        without GFNI; the same counts, both paths checked by ``tests/test_transport.py``)."""
+        without GFNI; the same counts, both paths checked by ``tests/test_transport.py``).
+        ``scratch``: the CPU hooks' scratch array (default: one of this launch's own; a test gives
+        two concurrent launches one scratch to check that the guard sees it).
+
+        Raises
+        ------
+        RuntimeError
+            Two CPU threads used the scratch at once (the guard of :mod:`.transport_cpu`): this
+            launch's counts and carry are wrong, so they are refused, not returned.
+        """
         if block_rows not in (1, 8):
             raise ValueError(f"block_rows = {block_rows} is not one of the allowed values 1, 8")
+        cpu = wp.get_device(device).is_cpu
         # One scratch per launch: Warp runs a CPU launch's threads one after the other (its own
         # CPU atomics are plain adds for that reason), so they share it; concurrent launches
         # (CPU shards) each get their own. The portable hooks never touch it.
         # A scratch one byte longer asks the CPU hooks for the row loop alone (.transport_cpu); the
         # arrays struct holds arrays only (Ensemble sizes its per-point memory from it).
-        size = SCRATCH_BYTES + (block_rows == 1) if wp.get_device(device).is_cpu else 0
-        scratch = wp.empty(size, dtype=wp.uint8, device=device)
+        if scratch is None:
+            scratch = wp.zeros(SCRATCH_BYTES + (block_rows == 1) if cpu else 0, dtype=wp.uint8, device=device)
         super().launch(device, state, [*extra, scratch], step0, steps, params, body)
+        if cpu and scratch.shape[0] >= SCRATCH_BYTES:
+            conflict = scratch.numpy()[: 8 * (CONFLICT_WORD + 1)].view(np.int64)[CONFLICT_WORD]
+            if conflict != 0:
+                raise RuntimeError(
+                    "two CPU threads of a transport launch used its scratch at once (does Warp "
+                    f"{wp.__version__} run a CPU launch's threads concurrently?): its return-time "
+                    "and flight counts would be wrong, so the launch is refused"
+                )
 
 
 #: ``advance_map`` plus the return-time and flight histograms (module docstring); its own Warp

@@ -26,13 +26,14 @@ Where the state lives: the buffer and the trackers in the launch's scratch array
 (:data:`SCRATCH_BYTES`, shared by the launch's threads, which Warp runs one after the other on
 the CPU), a few scalars in the thread's accumulator struct. Warp zero-initialises that struct
 for every thread; with the 4.6 KB buffer in it, that and the scalar carry conversion cost ~12 ms
-per launch of 10^6 points, ~15% of a launch of the default chunk; now ~2 ms.
+per launch of 10^6 points, ~15% of a launch of the default chunk; now ~2 ms. A guard in the
+scratch (its owner and conflict words) turns threads that share it at once into an error.
 """
 
 from .step import INTERLEAVE
 from .transport_block import BLOCK_CPU
 
-__all__ = ["BINS", "CAP", "ROWS", "SCRATCH_BYTES", "STEP_CPU", "DECODE_CPU", "FINISH_CPU"]
+__all__ = ["BINS", "CAP", "ROWS", "SCRATCH_BYTES", "CONFLICT_WORD", "STEP_CPU", "DECODE_CPU", "FINISH_CPU"]
 
 #: Histogram bins: bin ``k`` counts lengths ``2^k <= L < 2^(k+1)``; 64 cover every int64 step count.
 BINS = 64
@@ -47,12 +48,31 @@ ROWS = 128
 
 # The launch's scratch array (bytes; a launch's threads use it one after the other): the buffer
 # (ROWS rows of INTERLEAVE gain bytes), the in_strip masks (ROWS x 4 bytes), the byte trackers
-# (valid, visited, age, fcode, flen: INTERLEAVE bytes each), the int64 excess (age, flen).
+# (valid, visited, age, fcode, flen: INTERLEAVE bytes each), the int64 excess (age, flen), and
+# the guard: the owner (a tag of the thread using the scratch) and the conflict word.
 _STRIP = ROWS * INTERLEAVE
 _TRACKERS = _STRIP + 4 * ROWS
 _EXTRA = _TRACKERS + 5 * INTERLEAVE
+_GUARD = _EXTRA + 2 * 8 * INTERLEAVE
 #: Bytes of the launch's scratch array.
-SCRATCH_BYTES = _EXTRA + 2 * 8 * INTERLEAVE
+SCRATCH_BYTES = _GUARD + 2 * 8
+#: Index of the scratch's conflict word as int64 (``scratch.view(int64)[CONFLICT_WORD]``): nonzero
+#: if two threads used the scratch at once (the counts of that launch are then wrong).
+CONFLICT_WORD = _GUARD // 8 + 1
+
+# Why a guard: the scratch is shared on the assumption that Warp runs a CPU launch's threads one
+# after the other (Warp 1.19 does, for kernels without tiles). Each thread writes its tag (the
+# address of its first carry element, unique across launches) into the owner word when it starts
+# and checks it at every decode and at its end: two threads whose lifetimes overlap write inside
+# each other's, so one of them finds another tag and sets the conflict word, which the launch
+# turns into an error (kernels.transport) instead of counts that would be silently wrong.
+_OWNER_TAG = "(unsigned long long)wp::address(acc.arrays.last_visit, acc.first)"
+_CHECK_OWNER = f"""
+{{
+    unsigned long long* const guard = (unsigned long long*)(acc.arrays.scratch.data + {_GUARD});
+    if (guard[0] != {_OWNER_TAG}) guard[1] = 1;
+}}
+"""
 
 _MASK = "unsigned int" if INTERLEAVE == 32 else "unsigned short"
 
@@ -86,7 +106,10 @@ const raw_t raw = __builtin_bit_cast(raw_t, gain);
 const u8v top = __builtin_shufflevector(raw, raw, {", ".join(str(8 * k + 7) for k in range(INTERLEAVE))});
 const bv inside = __builtin_convertvector(in_strip != 0.0, bv);
 unsigned char* const scratch = acc.arrays.scratch.data;
-if (acc.rows == 0) acc.base = global_step - 1;
+if (acc.rows == 0) {{
+    acc.base = global_step - 1;
+    if (!acc.ready) *(unsigned long long*)(scratch + {_GUARD}) = {_OWNER_TAG}; /* the guard's owner */
+}}
 __builtin_memcpy(scratch + acc.rows * {INTERLEAVE}, &top, sizeof(u8v));
 const unsigned int mask = __builtin_bit_cast({_MASK}, inside);
 __builtin_memcpy(scratch + {_STRIP} + 4 * acc.rows, &mask, 4);
@@ -102,10 +125,12 @@ acc.rows = acc.rows + 1;
 #: Decode the buffered rows (``after_check`` and ``store``); see the module docstring.
 DECODE_CPU = (
     _TYPES
-    + f"""
+    + """
 const int rows = acc.rows;
 if (rows == 0) return;
-const int N = {INTERLEAVE};
+"""
+    + _CHECK_OWNER
+    + f"""const int N = {INTERLEAVE};
 unsigned char* const buffer = acc.arrays.scratch.data;
 const unsigned int* const strip = (const unsigned int*)(buffer + {_STRIP}); /* 4 bytes a row */
 unsigned char* const trackers = buffer + {_TRACKERS}; /* valid, visited, age, fcode, flen */
@@ -274,6 +299,9 @@ const unsigned char* const trackers = acc.arrays.scratch.data + {_TRACKERS};
 const long long* const age_extra = (const long long*)(acc.arrays.scratch.data + {_EXTRA});
 const long long* const flen_extra = age_extra + N;
 if (acc.ready) {{
+"""
+    + _CHECK_OWNER
+    + f"""
     u8v bytes[5];
     i64v a_extra, l_extra;
     __builtin_memcpy(bytes, trackers, 5 * N);
