@@ -246,3 +246,24 @@ def test_two_threads_on_one_scratch_are_refused_not_miscounted():
     assert "used its scratch at once" in errors[0]
     # and a launch of its own, the same arrays, is not flagged (every other test relies on it)
     _launches(p, state, carry, 0, [40], "cpu")
+
+
+def test_the_cli_refuses_a_flagged_launch_in_one_line_with_status_1(monkeypatch, capsys):
+    """A launch the guard flags is not the user's input: one error line, status 1, no counts."""
+    from warpratchet.cli import main
+    from warpratchet.kernels.transport_cpu import CONFLICT_WORD, SCRATCH_BYTES
+
+    launch = advance_map_transport.launch
+
+    def flagged(*args, **kwargs):
+        scratch = np.zeros(SCRATCH_BYTES, dtype=np.uint8)
+        scratch.view(np.int64)[CONFLICT_WORD] = 1  # as if another thread had been there
+        return launch(*args, scratch=wp.array(scratch, dtype=wp.uint8), **kwargs)
+
+    monkeypatch.setattr(advance_map_transport, "launch", flagged)
+    argv = ["run", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--points", "64", "--steps", "16"]
+    code = main([*argv, "--transport", "--json", "--quiet"])
+    captured = capsys.readouterr()
+    assert code == 1 and captured.out == "", captured
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warpratchet: error: two CPU threads"), captured.err

@@ -30,6 +30,7 @@ __all__ = [
     "FileFormatError",
     "ResourceError",
     "NonFiniteStateError",
+    "KernelError",
     "check_count",
     "check_real",
     "check_choice",
@@ -57,6 +58,13 @@ class NonFiniteStateError(WarpratchetError, FloatingPointError):
     """A state with NaN or infinite values: never summarised as a number, never stored as a checkpoint.
 
     Also a ``FloatingPointError`` (what :func:`~warpratchet.observables.summarize` raised before).
+    """
+
+
+class KernelError(WarpratchetError, RuntimeError):
+    """A kernel launch whose results the code cannot vouch for, refused rather than returned (e.g.
+    the transport hooks' guard saw two CPU threads share their scratch). Not the user's input:
+    the CLI exits with status 1. Also a ``RuntimeError``.
     """
 
 

@@ -30,6 +30,7 @@ on the order.
 import numpy as np
 import warp as wp
 
+from ..errors import KernelError
 from .advance import AdvanceKernel, Variant
 from .step import INTERLEAVE, Lanes, load_lanes, store_lane_vector
 from .transport_cpu import BINS, CONFLICT_WORD, DECODE_CPU, FINISH_CPU, ROWS, SCRATCH_BYTES, STEP_CPU
@@ -212,9 +213,10 @@ class _TransportKernel(AdvanceKernel):
 
         Raises
         ------
-        RuntimeError
-            Two CPU threads used the scratch at once (the guard of :mod:`.transport_cpu`): this
-            launch's counts and carry are wrong, so they are refused, not returned.
+        KernelError
+            (a ``RuntimeError``) Two CPU threads used the scratch at once (the guard of
+            :mod:`.transport_cpu`): this launch's counts and carry are wrong, so they are
+            refused, not returned.
         """
         if block_rows not in (1, 8):
             raise ValueError(f"block_rows = {block_rows} is not one of the allowed values 1, 8")
@@ -230,7 +232,7 @@ class _TransportKernel(AdvanceKernel):
         if cpu and scratch.shape[0] >= SCRATCH_BYTES:
             conflict = scratch.numpy()[: 8 * (CONFLICT_WORD + 1)].view(np.int64)[CONFLICT_WORD]
             if conflict != 0:
-                raise RuntimeError(
+                raise KernelError(
                     "two CPU threads of a transport launch used its scratch at once (does Warp "
                     f"{wp.__version__} run a CPU launch's threads concurrently?): its return-time "
                     "and flight counts would be wrong, so the launch is refused"
