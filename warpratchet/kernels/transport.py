@@ -33,7 +33,16 @@ import warp as wp
 from ..errors import KernelError
 from .advance import AdvanceKernel, Variant
 from .step import INTERLEAVE, Lanes, load_lanes, store_lane_vector
-from .transport_cpu import BINS, CONFLICT_WORD, DECODE_CPU, FINISH_CPU, ROWS, SCRATCH_BYTES, STEP_CPU
+from .transport_cpu import (
+    BINS,
+    CLAIM_CPU,
+    CONFLICT_WORD,
+    DECODE_CPU,
+    FINISH_CPU,
+    ROWS,
+    SCRATCH_BYTES,
+    STEP_CPU,
+)
 
 __all__ = ["BINS", "HISTOGRAMS", "CARRY_FIELDS", "advance_map_transport", "TRANSPORT"]
 
@@ -111,6 +120,10 @@ def _store(arrays: _Arrays, acc: _Accumulators, first: int, spacing: int, n: int
             wp.atomic_add(arrays.counts, b, acc.counts[b])
 
 
+@wp.func_native(CLAIM_CPU)
+def _claim_cpu(acc: wp.ref[_CpuAccumulators]): ...
+
+
 @wp.func
 def _load_cpu(arrays: _Arrays, first: int, spacing: int, n: int):
     acc = _CpuAccumulators()
@@ -118,6 +131,7 @@ def _load_cpu(arrays: _Arrays, first: int, spacing: int, n: int):
     acc.first = first
     acc.spacing = spacing
     acc.lanes = _lanes(first, spacing, n)
+    _claim_cpu(acc)  # the scratch's guard: this thread's tag, once, before the step loop
     return acc
 
 
@@ -229,8 +243,8 @@ class _TransportKernel(AdvanceKernel):
         if scratch is None:
             scratch = wp.zeros(SCRATCH_BYTES + (block_rows == 1) if cpu else 0, dtype=wp.uint8, device=device)
         super().launch(device, state, [*extra, scratch], step0, steps, params, body)
-        if cpu and scratch.shape[0] >= SCRATCH_BYTES:
-            conflict = scratch.numpy()[: 8 * (CONFLICT_WORD + 1)].view(np.int64)[CONFLICT_WORD]
+        if cpu:
+            conflict = scratch.numpy()[8 * CONFLICT_WORD : 8 * CONFLICT_WORD + 8].view(np.int64)[0]
             if conflict != 0:
                 raise KernelError(
                     "two CPU threads of a transport launch used its scratch at once (does Warp "

@@ -33,7 +33,17 @@ scratch (its owner and conflict words) turns threads that share it at once into 
 from .step import INTERLEAVE
 from .transport_block import BLOCK_CPU
 
-__all__ = ["BINS", "CAP", "ROWS", "SCRATCH_BYTES", "CONFLICT_WORD", "STEP_CPU", "DECODE_CPU", "FINISH_CPU"]
+__all__ = [
+    "BINS",
+    "CAP",
+    "ROWS",
+    "SCRATCH_BYTES",
+    "CONFLICT_WORD",
+    "CLAIM_CPU",
+    "STEP_CPU",
+    "DECODE_CPU",
+    "FINISH_CPU",
+]
 
 #: Histogram bins: bin ``k`` counts lengths ``2^k <= L < 2^(k+1)``; 64 cover every int64 step count.
 BINS = 64
@@ -67,6 +77,9 @@ CONFLICT_WORD = _GUARD // 8 + 1
 # each other's, so one of them finds another tag and sets the conflict word, which the launch
 # turns into an error (kernels.transport) instead of counts that would be silently wrong.
 _OWNER_TAG = "(unsigned long long)wp::address(acc.arrays.last_visit, acc.first)"
+#: The thread's claim on the scratch (``load``, once before its step loop: not in the loop,
+#: where the tag's address arithmetic cost the step loop 18 instructions and 12 stack accesses).
+CLAIM_CPU = f"*(unsigned long long*)(acc.arrays.scratch.data + {_GUARD}) = {_OWNER_TAG};\n"
 _CHECK_OWNER = f"""
 {{
     unsigned long long* const guard = (unsigned long long*)(acc.arrays.scratch.data + {_GUARD});
@@ -106,10 +119,7 @@ const raw_t raw = __builtin_bit_cast(raw_t, gain);
 const u8v top = __builtin_shufflevector(raw, raw, {", ".join(str(8 * k + 7) for k in range(INTERLEAVE))});
 const bv inside = __builtin_convertvector(in_strip != 0.0, bv);
 unsigned char* const scratch = acc.arrays.scratch.data;
-if (acc.rows == 0) {{
-    acc.base = global_step - 1;
-    if (!acc.ready) *(unsigned long long*)(scratch + {_GUARD}) = {_OWNER_TAG}; /* the guard's owner */
-}}
+if (acc.rows == 0) acc.base = global_step - 1;
 __builtin_memcpy(scratch + acc.rows * {INTERLEAVE}, &top, sizeof(u8v));
 const unsigned int mask = __builtin_bit_cast({_MASK}, inside);
 __builtin_memcpy(scratch + {_STRIP} + 4 * acc.rows, &mask, 4);
