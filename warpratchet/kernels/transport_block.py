@@ -98,7 +98,7 @@ auto reverse8 = [&](u8v v) {
     return (u8v)__builtin_ia32_vgf2p8affineqb_v32qi((i8x32)v, (i8x32)reversal, 0);
 };
 auto lowest8 = [](u8v v) { return v & (u8v)(0 - v); };
-auto ctz8 = [](u8v v) { return __builtin_elementwise_popcount((v & (u8v)(0 - v)) - (u8v)1); };
+auto ctz8 = [&](u8v v) { return popcount8(lowest8(v) - (u8v)1); };
 """
 
 #: 8-row blocks (module docstring), for 32 lanes; needs ``planes8`` and the bit tricks.
@@ -154,7 +154,8 @@ for (; block_rows >= 8 && r0 + 8 <= rows; r0 += 8) {
     t[6] += n_up - up2;
     t[7] += n_up - up4;
     t[8] += n_up;
-    flen = ends ? popcount8(last_reversed - one) + one : flen + eight; /* rows from the last boundary */
+    /* rows from the last boundary: ctz8 of the reversed block, from its lowest bit found above */
+    flen = ends ? popcount8(last_reversed - one) + one : flen + eight;
     u8v last_row;
     __builtin_memcpy(&last_row, buffer + (r0 + 7) * N, N);
     fcode = gain_code(last_row);
