@@ -21,7 +21,8 @@ i.e. the recording alone costs nothing measurable: the plain loop has slots to s
 is ~210 instructions (``objdump`` of the block loop), about 8 cycles a row. Bit
 reversal is one GF2P8AFFINEQB with the reversal matrix (LLVM already lowered the shift-and-mask
 form to it); the run length after the last boundary reuses the reversed block that finds that
-boundary (5 instructions fewer a block: 215 -> 210).
+boundary (5 instructions fewer a block: 215 -> 210; the scratch guard's check at each decode
+makes it 211).
 """
 
 __all__ = ["BLOCK_CPU"]
