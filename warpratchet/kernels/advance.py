@@ -15,6 +15,12 @@ Checks sit at *global* step numbers (``step0`` is 64-bit), so a run split into a
 resumed, renormalises at the same steps and stays bitwise equal. One launch advances at most
 :data:`MAX_LAUNCH_STEPS` steps (the loop counter is 32-bit); :meth:`AdvanceKernel.launch`
 refuses more, and ``Ensemble`` splits longer chunks.
+
+A variant without per-step work (``one_point=True``: the plain map) also gets a third kernel,
+``point``, that runs one point per thread with the portable body's one-point functions; it is
+what a GPU runs. A GPU thread that holds :data:`INTERLEAVE` lanes keeps more state than its
+registers hold, so the lanes spill to local memory; one point per thread stays in registers
+(``benchmarks/README.md`` has the measurements). The CPU keeps its lane vectors.
 """
 
 from collections.abc import Sequence
@@ -24,7 +30,17 @@ from typing import Any
 import warp as wp
 
 from .runtime import CPU_MODULE, CPU_MODULE_OPTIONS, MODULE_OPTIONS, PORTABLE_MODULE
-from .step import CPU, INTERLEAVE, PORTABLE, RENORM_CHECK_EVERY, Body, Coefficients, State
+from .step import (
+    CPU,
+    INTERLEAVE,
+    PORTABLE,
+    RENORM_CHECK_EVERY,
+    Body,
+    Coefficients,
+    State,
+    _renorm_point,
+    _step_point,
+)
 
 __all__ = ["MAX_LAUNCH_STEPS", "Variant", "AdvanceKernel", "advance_kernel", "launch_dim"]
 
@@ -101,24 +117,65 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
     return wp.kernel(advance, name=f"advance_{variant.name}", module=module)
 
 
-class AdvanceKernel:
-    """A variant's kernel on both step bodies; :meth:`launch` picks the body for the device."""
+def _build_point(module: str, options: dict) -> wp.Kernel:
+    """The plain map with one point per thread (thread ``i`` advances point ``i``)."""
+    check_mask = wp.int64(RENORM_CHECK_EVERY - 1)
 
-    def __init__(self, variant: Variant, module_suffix: str = "") -> None:
+    def advance_point(state: State, step0: wp.int64, steps: int, p: Coefficients):
+        i = wp.tid()
+        x = state.x[i]
+        q = state.q[i]
+        dx = state.dx[i]
+        dp = state.dp[i]
+        log_stretch = state.log_stretch[i]
+        w = wp.float64(0.0)
+        global_step = step0
+        for _s in range(steps):
+            x, q, w, dx, dp, gain, in_strip = _step_point(x, q, w, dx, dp, p)
+            global_step = global_step + wp.int64(1)
+            if (global_step & wp.static(check_mask)) == wp.int64(0):
+                dx, dp, log_stretch = _renorm_point(dx, dp, log_stretch)
+        state.x[i] = x
+        state.q[i] = q
+        state.dx[i] = dx
+        state.dp[i] = dp
+        state.log_stretch[i] = log_stretch
+        state.winding[i] = state.winding[i] + wp.int64(w)
+
+    wp.set_module_options(options, module)
+    return wp.kernel(advance_point, name="advance_map_point", module=module)
+
+
+class AdvanceKernel:
+    """A variant's kernel on each step body; :meth:`launch` picks the body for the device.
+
+    ``one_point=True`` (a variant with no per-step work) adds the ``point`` kernel, the default
+    off the CPU.
+    """
+
+    def __init__(self, variant: Variant, module_suffix: str = "", one_point: bool = False) -> None:
         self.variant = variant
         self.cpu = _build(variant, CPU, CPU_MODULE + module_suffix, CPU_MODULE_OPTIONS)
         self.portable = _build(variant, PORTABLE, PORTABLE_MODULE + module_suffix, MODULE_OPTIONS)
+        self.point = _build_point(PORTABLE_MODULE + module_suffix, MODULE_OPTIONS) if one_point else None
+
+    def _body(self, device: str, body: str | None) -> str:
+        on_cpu = wp.get_device(device).is_cpu
+        if body is None:
+            body = "cpu" if on_cpu else ("point" if self.point is not None else "portable")
+        if body == "cpu" and not on_cpu:
+            raise ValueError(f"the CPU step body does not run on {device}")
+        if body == "point" and self.point is None:
+            raise ValueError(f"the {self.variant.name} variant has no one-point kernel")
+        return body
 
     def kernel(self, device: str, body: str | None = None) -> wp.Kernel:
-        """The Warp kernel for ``device``: the CPU body on the CPU, the portable one elsewhere.
+        """The Warp kernel for ``device``: the CPU body on the CPU; elsewhere the one-point kernel
+        where the variant has one, else the portable body.
 
-        ``body="portable"`` forces the portable body (tests compare the two on the CPU).
+        ``body="portable"`` or ``"point"`` forces that kernel (tests compare them on the CPU).
         """
-        if body is None:
-            body = "cpu" if wp.get_device(device).is_cpu else "portable"
-        if body == "cpu" and not wp.get_device(device).is_cpu:
-            raise ValueError(f"the CPU step body does not run on {device}")
-        return {"cpu": self.cpu, "portable": self.portable}[body]
+        return {"cpu": self.cpu, "portable": self.portable, "point": self.point}[self._body(device, body)]
 
     def load(self, device: str, body: str | None = None) -> None:
         """Compile (or load from Warp's kernel cache) the module that :meth:`launch` will use."""
@@ -144,12 +201,14 @@ class AdvanceKernel:
             raise ValueError(f"steps = {steps} is outside the allowed range 0 <= steps <= {MAX_LAUNCH_STEPS}")
         if not 0 <= step0 < 2**63 - steps:
             raise ValueError(f"step0 = {step0} is outside the allowed range 0 <= step0 < 2^63 - steps")
-        arguments = [_fill(State(), state), _fill(self.variant.arrays(), extra), step0, steps]
+        body = self._body(device, body)
+        if body == "point":
+            arguments, dim = [_fill(State(), state), step0, steps], state[0].shape[0]
+        else:
+            arguments = [_fill(State(), state), _fill(self.variant.arrays(), extra), step0, steps]
+            dim = launch_dim(state[0].shape[0])
         wp.launch(
-            self.kernel(device, body),
-            dim=launch_dim(state[0].shape[0]),
-            inputs=[*arguments, coefficients(params)],
-            device=device,
+            self.kernel(device, body), dim=dim, inputs=[*arguments, coefficients(params)], device=device
         )
 
 
@@ -169,10 +228,10 @@ def coefficients(params: Any) -> Coefficients:
     return c
 
 
-def advance_kernel(variant: Variant, module_suffix: str = "") -> AdvanceKernel:
-    """Build ``variant``'s kernel on both step bodies.
+def advance_kernel(variant: Variant, module_suffix: str = "", one_point: bool = False) -> AdvanceKernel:
+    """Build ``variant``'s kernel on both step bodies (and the one-point kernel if ``one_point``).
 
     The package's kernels share two Warp modules (one compilation each); ``module_suffix`` puts a
     variant in modules of its own (e.g. ``".transport"``), compiled only when it is used.
     """
-    return AdvanceKernel(variant, module_suffix)
+    return AdvanceKernel(variant, module_suffix, one_point)

@@ -37,4 +37,4 @@ def _nothing(acc: wp.ref[_NoAccumulators], s: wp.ref[Lanes], counter: wp.int64):
 PLAIN = Variant("map", _NoArrays, _NoAccumulators, _load, _store, _nothing, _nothing)
 
 #: Advance the state by ``steps`` iterations of Eq. (cpem) and of ``DM`` from global step ``step0``.
-advance_map = advance_kernel(PLAIN)
+advance_map = advance_kernel(PLAIN, one_point=True)

@@ -23,7 +23,9 @@ that kernel variants may use (an unused fact costs nothing: the compiler drops i
 
 Two bodies, one arithmetic:
 
-* :data:`PORTABLE`, plain Warp (a scalar step per lane), compiles for CUDA and the CPU;
+* :data:`PORTABLE`, plain Warp (a scalar step per lane), compiles for CUDA and the CPU; its
+  one-point functions ``_step_point`` and ``_renorm_point`` also make ``advance_map``'s CUDA kernel,
+  which runs one point per GPU thread (:mod:`warpratchet.kernels.advance`);
 * :data:`CPU`, the same operations on whole lane vectors in C++ (``wp.func_native`` with clang
   vector extensions): ``floor`` is one ``vrndscalepd`` per 8 lanes (AVX-512), each three-way
   choice a pair of masked blends, and no libm call sits in the step (only ``log`` in a renormalisation,
@@ -220,15 +222,21 @@ def _step_portable(s: wp.ref[Lanes], p: Coefficients):
 
 
 @wp.func
+def _renorm_point(dx: wp.float64, dp: wp.float64, log_stretch: wp.float64):
+    """The renormalisation check for one point; returns ``dx, dp, log_stretch``."""
+    if wp.abs(dx) > wp.float64(RENORM_THRESHOLD):
+        h = wp.sqrt(dx * dx + dp * dp)
+        return dx / h, dp / h, log_stretch + wp.log(h)
+    return dx, dp, log_stretch
+
+
+@wp.func
 def _renorm_portable(s: wp.ref[Lanes]):
     for k in range(wp.static(INTERLEAVE)):
-        dx = s.dx[k]
-        dp = s.dp[k]
-        if wp.abs(dx) > wp.float64(RENORM_THRESHOLD):
-            h = wp.sqrt(dx * dx + dp * dp)
-            s.log_stretch[k] = s.log_stretch[k] + wp.log(h)
-            s.dx[k] = dx / h
-            s.dp[k] = dp / h
+        dx, dp, log_stretch = _renorm_point(s.dx[k], s.dp[k], s.log_stretch[k])
+        s.dx[k] = dx
+        s.dp[k] = dp
+        s.log_stretch[k] = log_stretch
 
 
 # -- the CPU body (clang vector extensions) -----------------------------------------------------
