@@ -272,8 +272,11 @@ def warp_contenders(
 
     # Warm-up: compiles the kernel (or loads it from Warp's cache) outside every measurement.
     Ensemble.sample(params, 64, init=INIT, seed=SEED, threads=1, device=device).run(16)
-    build = f"warp {version('warp-lang')} {device}: Ensemble.run, {INTERLEAVE} points per Warp thread"
-    build += ", one Warp launch per Python thread" if device == "cpu" else ""
+    build = f"warp {version('warp-lang')} {device}: Ensemble.run, "
+    if device == "cpu":
+        build += f"{INTERLEAVE} points per Warp thread, one Warp launch per Python thread"
+    else:
+        build += "one point per GPU thread"
     label = _label("warpratchet", device)
     return [Contender("warpratchet", label, t, make(t), device=device) for t in threads], build
 
