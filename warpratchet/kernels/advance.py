@@ -24,7 +24,7 @@ from typing import Any
 import warp as wp
 
 from .runtime import CPU_MODULE, CPU_MODULE_OPTIONS, MODULE_OPTIONS, PORTABLE_MODULE
-from .step import CPU, INTERLEAVE, PORTABLE, RENORM_CHECK_EVERY, Body, Coefficients, State
+from .step import CPU, INTERLEAVE, PORTABLE, RENORM_CHECK_EVERY, Body, Coefficients, State, force_bodies
 
 __all__ = ["MAX_LAUNCH_STEPS", "Variant", "AdvanceKernel", "advance_kernel", "launch_dim"]
 
@@ -74,7 +74,7 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
     check_shift = wp.int64(RENORM_CHECK_EVERY.bit_length() - 1)
     after_step, after_check, store = variant.after_step, variant.after_check, variant.store
     load = variant.load
-    if body is CPU:
+    if body.name == CPU.name:
         after_step = variant.cpu_after_step or after_step
         after_check = variant.cpu_after_check or after_check
         load = variant.cpu_load or load
@@ -104,25 +104,42 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
 class AdvanceKernel:
     """A variant's kernel on both step bodies; :meth:`launch` picks the body for the device."""
 
-    def __init__(self, variant: Variant, module_suffix: str = "") -> None:
+    def __init__(
+        self, variant: Variant, module_suffix: str = "", bodies: tuple[Body, Body] = (CPU, PORTABLE)
+    ) -> None:
         self.variant = variant
-        self.cpu = _build(variant, CPU, CPU_MODULE + module_suffix, CPU_MODULE_OPTIONS)
-        self.portable = _build(variant, PORTABLE, PORTABLE_MODULE + module_suffix, MODULE_OPTIONS)
+        self.module_suffix = module_suffix
+        self.cpu = _build(variant, bodies[0], CPU_MODULE + module_suffix, CPU_MODULE_OPTIONS)
+        self.portable = _build(variant, bodies[1], PORTABLE_MODULE + module_suffix, MODULE_OPTIONS)
+        self._forces: dict[str, AdvanceKernel] = {}
 
-    def kernel(self, device: str, body: str | None = None) -> wp.Kernel:
+    def for_force(self, table: Any) -> "AdvanceKernel":
+        """This variant on the bodies of a force's piece table (:mod:`warpratchet.force`): itself
+        for the paper's family, else kernels in modules of the force's own (built on first use)."""
+        if table.family == "paper":
+            return self
+        if table.key not in self._forces:
+            suffix = f"{self.module_suffix}.force_{table.key}"
+            self._forces[table.key] = AdvanceKernel(self.variant, suffix, force_bodies(table))
+        return self._forces[table.key]
+
+    def kernel(self, device: str, body: str | None = None, table: Any = None) -> wp.Kernel:
         """The Warp kernel for ``device``: the CPU body on the CPU, the portable one elsewhere.
 
-        ``body="portable"`` forces the portable body (tests compare the two on the CPU).
+        ``body="portable"`` forces the portable body (tests compare the two on the CPU);
+        ``table``, a force's piece table (default: the paper's family).
         """
+        if table is not None:
+            return self.for_force(table).kernel(device, body)
         if body is None:
             body = "cpu" if wp.get_device(device).is_cpu else "portable"
         if body == "cpu" and not wp.get_device(device).is_cpu:
             raise ValueError(f"the CPU step body does not run on {device}")
         return {"cpu": self.cpu, "portable": self.portable}[body]
 
-    def load(self, device: str, body: str | None = None) -> None:
+    def load(self, device: str, body: str | None = None, table: Any = None) -> None:
         """Compile (or load from Warp's kernel cache) the module that :meth:`launch` will use."""
-        wp.load_module(self.kernel(device, body).module, device=device)
+        wp.load_module(self.kernel(device, body, table).module, device=device)
 
     def launch(
         self,
@@ -146,7 +163,7 @@ class AdvanceKernel:
             raise ValueError(f"step0 = {step0} is outside the allowed range 0 <= step0 < 2^63 - steps")
         arguments = [_fill(State(), state), _fill(self.variant.arrays(), extra), step0, steps]
         wp.launch(
-            self.kernel(device, body),
+            self.kernel(device, body, params.table),
             dim=launch_dim(state[0].shape[0]),
             inputs=[*arguments, coefficients(params)],
             device=device,
@@ -163,9 +180,14 @@ def _fill(struct: Any, arrays: Sequence[wp.array]) -> Any:
 
 
 def coefficients(params: Any) -> Coefficients:
-    """The kernel's view of the map (Eqs. fx, mmc) from a ``MapParams``."""
+    """The kernel's view of the map (Eqs. fx, mmc) from a ``MapParams``: ``K`` and the paper's
+    run-time coefficients by their fields (another force's are constants of its code)."""
     c = Coefficients()
-    c.K, c.b1, c.right, c.l1, c.l2, c.c = params.K, params.b1, 1.0 - params.b2, params.l1, params.l2, params.c
+    c.K = params.K
+    for piece in params.table.pieces:
+        for term in (piece.end, piece.slope, piece.anchor, piece.value):
+            if term.field is not None:
+                setattr(c, term.field, term.value)
     return c
 
 
