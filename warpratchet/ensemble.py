@@ -353,7 +353,7 @@ class Ensemble:
         chunk_steps = check_count("chunk_steps", chunk_steps, 1, MAX_CHUNK_STEPS)
         try:
             # Compile (or load from cache) before any thread launches.
-            self._kernel.load(self.device)
+            self._kernel.load(self.device, table=self.params.table)
             use_pool = wp.get_device(self.device).is_cpu and self.threads > 1 and self.points > 1
             pool = ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet") if use_pool else None
             run_chunks(self, self.step + steps, observers, chunk_steps, pool)

@@ -262,6 +262,18 @@ class Force:
         ``|tr DM| = |2 + K f'| > 2`` for every ``K > 0``)."""
         return tuple(a > 0 for a, _ in self.exact_pieces())
 
+    def strip_interval(self) -> tuple[float, float] | None:
+        """``(start, width)``: the strip as one interval ``start <= x < start + width`` (mod 1),
+        or None when its pieces are not one interval (or there are none)."""
+        ends = (*self.knots[1:], Fraction(1))
+        runs = [(self.knots[s0], ends[s1]) for s0, s1 in _strip_runs(self)]
+        if len(runs) == 2 and runs[0][0] == 0 and runs[1][1] == 1:  # one interval across x = 1
+            runs = [(runs[1][0] - 1, runs[0][1])]
+        if len(runs) != 1:
+            return None
+        start, end = runs[0]
+        return float(start), float(end - start)
+
     @property
     def max_value(self) -> Fraction:
         """``max |f|`` (at a knot)."""
