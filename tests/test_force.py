@@ -10,7 +10,6 @@ from warpratchet import kernels, reference
 from warpratchet.ensemble import Ensemble
 from warpratchet.errors import ParameterError
 from warpratchet.force import Force
-from warpratchet.orbits.exact import paper_kicks
 from warpratchet.params import MapParams
 from warpratchet.spec import RunSpec
 
@@ -41,6 +40,16 @@ FORCES = [
     Force.from_knots([0, 0.2, 0.5, 0.7], [0, 0.2, -0.1, -0.1]),
     Force.from_knots(*zero_mean([0, 0.15, 0.3, 0.45, 0.6, 0.8], [0.05, 0.3, -0.1, 0.25, -0.2])),
 ]
+
+
+def paper_kicks(p: MapParams):
+    """``(K a_s, K d_s)`` of Eq. (fx) with Eq. (mmc), derived here from the paper, exactly."""
+    K, b1, b2 = Fraction(p.K), Fraction(p.b1), Fraction(p.b2)
+    b = b1 + b2
+    c = (1 - b2) / (2 - b)
+    l1 = (1 - b1) * (1 - b) / (b1 * (2 - b))
+    l2 = (1 - b2) * (1 - b) / (b2 * (2 - b))
+    return ((K * l1, Fraction(0)), (-K, K * c), (K * l2, -K * l2))
 
 
 def test_the_slopes_short_cuts_are_exercised():
@@ -78,7 +87,7 @@ def test_the_tangent_bound_refuses_a_force_too_steep_for_the_renormalisation():
 def test_the_paper_table_is_eq_fx_exactly_and_its_float_form_the_closed_forms(b1, b2):
     p = MapParams(3.0, b1, b2)
     table = p.table
-    # exact kicks against orbits.exact's own derivation of Eq. (mmc)
+    # exact kicks against Eq. (mmc) derived independently
     assert table.exact_kicks(p.K) == paper_kicks(p)
     assert [piece.slope.value for piece in table.pieces] == [p.l1, -1.0, p.l2]
     assert table.pieces[1].anchor.value == p.c and table.pieces[0].end.value == b1

@@ -12,6 +12,7 @@ offset from Eq. mmc, Appendix A), or any other table (``MapParams(K, table=Force
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -20,7 +21,7 @@ from .errors import ParameterError, check_real
 from .force import Force, paper_coefficients
 
 # check_real is re-exported: it was params.check_real before errors.py held the one validator set.
-__all__ = ["MapParams", "check_real"]
+__all__ = ["MapParams", "check_real", "map_text"]
 
 
 @dataclass(frozen=True)
@@ -160,3 +161,10 @@ class MapParams:
         kf = self.K * self.force_slope(x)
         one = np.ones_like(kf)
         return np.stack([np.stack([one + kf, one], -1), np.stack([kf, one], -1)], -2)
+
+
+def map_text(values: Mapping) -> str:
+    """``K = 3, b1 = 0.1, b2 = 0.01``, or ``K = 2, knots = ..., values = ...`` for another force."""
+    if values.get("knots") is not None:
+        return f"K = {values['K']}, knots = {values['knots']}, values = {values['values']}"
+    return f"K = {values['K']}, b1 = {values['b1']}, b2 = {values['b2']}"
