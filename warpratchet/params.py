@@ -79,7 +79,8 @@ class MapParams:
         """Whether the force is the paper's family of Eq. (fx) (``b1, b2`` given)."""
         return self.table.family == "paper"
 
-    def _paper_only(self, name: str) -> None:
+    def require_paper(self, name: str) -> None:
+        """:class:`ParameterError` naming ``name`` unless the force is Eq. (fx) (``b1, b2``)."""
         if not self.is_paper:
             raise ParameterError(
                 f"{name} belongs to the paper's force of Eq. (fx); this map's force has "
@@ -95,25 +96,25 @@ class MapParams:
     @property
     def b(self) -> float:
         """Total width ``b = b1 + b2`` of the hyperbolic strip B (Eq. B)."""
-        self._paper_only("b")
+        self.require_paper("b")
         return self.b1 + self.b2
 
     @property
     def l1(self) -> float:
         """Left slope ``l1`` of Eq. (mmc) (:func:`warpratchet.force.paper_coefficients`)."""
-        self._paper_only("l1")
+        self.require_paper("l1")
         return paper_coefficients(self.b1, self.b2)[0]
 
     @property
     def l2(self) -> float:
         """Right slope ``l2`` of Eq. (mmc)."""
-        self._paper_only("l2")
+        self.require_paper("l2")
         return paper_coefficients(self.b1, self.b2)[1]
 
     @property
     def c(self) -> float:
         """Offset ``c`` of the middle branch, Eq. (mmc)."""
-        self._paper_only("c")
+        self.require_paper("c")
         return paper_coefficients(self.b1, self.b2)[2]
 
     @property
