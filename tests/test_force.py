@@ -10,6 +10,7 @@ from warpratchet import kernels, reference
 from warpratchet.ensemble import Ensemble
 from warpratchet.errors import ParameterError
 from warpratchet.force import Force
+from warpratchet.orbits import enumerate_orbits
 from warpratchet.params import MapParams
 from warpratchet.spec import RunSpec
 
@@ -146,3 +147,80 @@ def test_the_strip_sampler_draws_from_the_pieces_of_positive_slope():
     assert sum(FORCES[2].strip) > 1 and FORCES[2].strip_interval() is None
     with pytest.raises(ParameterError, match="has none or several"):
         Ensemble.sample(several, 100, init="strip")
+
+
+def _newton_cycles(knots, values, K: float, m: int, starts: int = 60) -> list[np.ndarray]:
+    """Periodic points of period ``m`` by Newton's method on ``M^m(z) - z = 0`` (mod 1), from a
+    ``starts x starts`` grid, with a force interpolated here (``np.interp``), not the table."""
+    xs = np.array([float(Fraction(k)) for k in knots] + [1.0])
+    fs = np.array([float(Fraction(v)) for v in values] + [float(Fraction(values[0]))])
+    slopes = np.diff(fs) / np.diff(xs)
+
+    def walk(z):
+        x, p = z
+        jac = np.eye(2)
+        for _ in range(m):
+            x = x % 1.0
+            a = K * slopes[min(np.searchsorted(xs, x, side="right") - 1, len(slopes) - 1)]
+            p = p + K * np.interp(x, xs, fs)
+            x = x + p
+            jac = np.array([[1.0 + a, 1.0], [a, 1.0]]) @ jac
+        return np.array([x, p]), jac
+
+    found = []
+    grid = (np.arange(starts) + 0.5) / starts
+    for x0 in grid:
+        for p0 in grid:
+            z = np.array([x0, p0])
+            for _ in range(20):
+                end, jac = walk(z)
+                residual = (end - z + 0.5) % 1.0 - 0.5
+                if np.max(np.abs(residual)) < 1e-13:
+                    found.append(z % 1.0)
+                    break
+                try:
+                    z = z - np.linalg.solve(jac - np.eye(2), residual)
+                except np.linalg.LinAlgError:
+                    break
+    return found
+
+
+@pytest.mark.parametrize("m", [1, 2, 3])
+def test_exact_orbits_are_the_roots_an_independent_newton_search_finds(m):
+    """Every root Newton's method finds from a 60 x 60 grid of starts lies on an exact orbit of a
+    period dividing m (to 1e-9), and for m <= 2 every exact orbit point is such a root."""
+    knots, values = ["0", "0.25", "0.75", "0.95"], ["-0.2", "0.3", "0", "-0.66"]
+    p = MapParams(3.0, table=Force.from_knots(knots, values))
+    # M^m = identity also on orbits of every period d dividing m
+    orbits = [o for d in range(1, m + 1) if m % d == 0 for o in enumerate_orbits(p, d).orbits]
+    assert orbits and all(o.kind != "parabolic" for o in orbits)  # isolated: Newton's method sees them
+    exact = np.concatenate([np.stack([o.x, o.p], -1) for o in orbits])
+    roots = np.array(_newton_cycles(knots, values, p.K, m))
+
+    def torus_distance(a, b):
+        d = np.abs(a[:, None, :] - b[None, :, :])
+        return np.minimum(d, 1.0 - d).max(-1)
+
+    to_exact = torus_distance(roots, exact).min(1)
+    to_roots = torus_distance(exact, roots).min(1)
+    assert np.all(to_exact < 1e-9), f"{np.count_nonzero(to_exact >= 1e-9)} roots off every exact orbit"
+    if m <= 2:  # at m = 3 some cells are too thin for a 60 x 60 grid of starts: a third of the points
+        assert np.all(to_roots < 1e-9), f"{np.count_nonzero(to_roots >= 1e-9)} exact points no root reached"
+
+
+def test_the_sum_rule_balances_for_a_force_whose_islands_have_period_2_and_4():
+    """Eq. (sum) for another force: ``A`` from the census's island areas against the direct mean
+    over the chaotic component, within 4 (sigma_sumrule + sigma_direct) (a bound on the standard
+    deviation of a difference of correlated estimates) plus the bias bound 2 S_unidentified / S_C
+    (an unidentified point carries ``|nu| <= 2``)."""
+    from warpratchet.sumrule import census
+
+    p = MapParams(3.0, table=Force.from_knots(["0", "0.25", "0.75", "0.95"], ["-0.2", "0.3", "0", "-0.66"]))
+    result = census(p, 4096, points=40_000, seed=1, m_max=8)
+    assert result.theory is None and result.knots == "0,0.25,0.75,0.95"
+    half = result.island(0.5)
+    assert half is not None and half.area > 5 * half.area_stderr  # the period-2 chain carries the rule
+    assert abs(result.A_direct) > 5 * result.A_direct_stderr
+    bias = 2.0 * result.unidentified_area / result.S_C
+    tolerance = 4.0 * (result.A_sumrule_stderr + result.A_direct_stderr) + bias
+    assert abs(result.A_sumrule - result.A_direct) <= tolerance
