@@ -310,5 +310,9 @@ def warp_indicator_contenders(
 
 
 def _map_args(params: MapParams) -> tuple[float, ...]:
-    """The kernel's scalar arguments ``K, b1, right = 1 - b2, l1, l2, c`` (Eqs. fx, mmc)."""
-    return (params.K, params.b1, 1.0 - params.b2, params.l1, params.l2, params.c)
+    """The contenders' scalar arguments ``K, b1, right = 1 - b2, l1, l2, c`` (Eqs. fx, mmc), read
+    from the force's piece table as the Warp kernels read them (the contenders are written by hand
+    for the three pieces of Eq. fx)."""
+    params.require_paper("the C and Numba contenders")
+    fields = params.table.fields()
+    return (params.K, *(fields[name] for name in ("b1", "right", "l1", "l2", "c")))

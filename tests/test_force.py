@@ -224,3 +224,16 @@ def test_the_sum_rule_balances_for_a_force_whose_islands_have_period_2_and_4():
     bias = 2.0 * result.unidentified_area / result.S_C
     tolerance = 4.0 * (result.A_sumrule_stderr + result.A_direct_stderr) + bias
     assert abs(result.A_sumrule - result.A_direct) <= tolerance
+
+
+def test_a_sweep_over_K_runs_another_force_and_refuses_a_sweep_file(tmp_path):
+    from warpratchet import sweep
+
+    table = Force.from_knots(["0", "0.25", "0.75", "0.95"], ["-0.2", "0.3", "0", "-0.66"])
+    points = sweep.k_path([2.8, 3.0], table=table)
+    rows = sweep.run_sweep(points, sweep.SweepSpec(points=1000, steps=2000, init="torus"))
+    assert [row["K"] for row in rows] == [2.8, 3.0]
+    assert all(np.isnan(row["b1"]) and row["domain"] == "n/a" and np.isfinite(row["A"]) for row in rows)
+    with pytest.raises(ParameterError, match="a sweep file stores K, b1, b2"):
+        sweep.run_sweep(points, sweep.SweepSpec(points=1000, steps=2000), out=tmp_path / "s.h5")
+    assert not (tmp_path / "s.h5").exists()

@@ -225,6 +225,12 @@ class Force:
         return cls(xs, fs, tuple(pieces), "pieces")
 
     # -- exact description ------------------------------------------------------------------------
+    def fields(self) -> dict[str, float]:
+        """The float64 coefficients the kernels read at run time, by field of their
+        ``Coefficients`` struct (the paper's ``b1, right, l1, l2, c``; none for another force)."""
+        terms = (t for piece in self.pieces for t in (piece.end, piece.slope, piece.anchor, piece.value))
+        return {t.field: t.value for t in terms if t.field is not None}
+
     @property
     def n_pieces(self) -> int:
         return len(self.knots)

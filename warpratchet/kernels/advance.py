@@ -184,10 +184,8 @@ def coefficients(params: Any) -> Coefficients:
     run-time coefficients by their fields (another force's are constants of its code)."""
     c = Coefficients()
     c.K = params.K
-    for piece in params.table.pieces:
-        for term in (piece.end, piece.slope, piece.anchor, piece.value):
-            if term.field is not None:
-                setattr(c, term.field, term.value)
+    for field, value in params.table.fields().items():
+        setattr(c, field, value)
     return c
 
 
