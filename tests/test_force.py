@@ -237,3 +237,56 @@ def test_a_sweep_over_K_runs_another_force_and_refuses_a_sweep_file(tmp_path):
     with pytest.raises(ParameterError, match="a sweep file stores K, b1, b2"):
         sweep.run_sweep(points, sweep.SweepSpec(points=1000, steps=2000), out=tmp_path / "s.h5")
     assert not (tmp_path / "s.h5").exists()
+
+
+def test_an_archive_stores_the_force_and_resumes_it_bit_for_bit(tmp_path, capsys):
+    """run --out with --knots/--values, then resume to twice the steps: the archive's map is the
+    force, and the resumed state is the uninterrupted run's, bit for bit."""
+    import json
+
+    from warpratchet.archive import open_archive
+    from warpratchet.cli import main
+
+    force = ["--knots", "0,0.25,0.75,0.95", "--values", "-0.2,0.3,0,-0.66"]
+    out = str(tmp_path / "run.h5")
+    common = ["--K", "3", *force, "--points", "500", "--seed", "4", "--init", "torus", "--quiet", "--json"]
+    assert main(["run", *common, "--steps", "1000", "--out", out]) == 0
+    capsys.readouterr()
+    assert main(["resume", out, "--steps", "2000", "--knots", "0,0.25,0.75,0.95", "--quiet", "--json"]) == 0
+    resumed = json.loads(capsys.readouterr().out)
+    params = MapParams(3.0, table=Force.from_knots(force[1].split(","), force[3].split(",")))
+    direct = Ensemble.sample(params, 500, "torus", 4).run(2000)
+    with open_archive(out) as arc:
+        assert arc.params == params and arc.checkpoint_step == 2000
+        state = arc.checkpoint()[0]
+    for name in FIELDS:
+        np.testing.assert_array_equal(state[name], direct.state()[name], err_msg=name)
+    assert resumed["knots"] == "0,0.25,0.75,0.95" and resumed["A"] == direct.summary(warn=False).A
+    assert main(["resume", out, "--steps", "3000", "--knots", "0,0.5", "--quiet"]) == 2
+    assert "disagrees with the archive's knots" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("body", ["cpu", "portable"])
+def test_transport_counts_of_another_force_equal_the_numpy_twins(body):
+    """Return times to the force's strip and flights (``advance_map_transport``) against
+    ``transport.twin``, 1003 points x 1500 steps from global step 5, count for count."""
+    import warp as wp
+
+    from warpratchet.kernels.transport import BINS, CARRY_FIELDS, advance_map_transport
+    from warpratchet.transport import twin
+
+    p = MapParams(3.0, table=Force.from_knots(["0", "0.25", "0.75", "0.95"], ["-0.2", "0.3", "0", "-0.66"]))
+    x, q = _start(p.table)
+    state = Ensemble(p, x, q, threads=1).state()
+    carry = twin.initial_carry(p, state["x"], 5)
+    expected_state, expected_carry, expected = twin.advance(p, state, carry, 1500, step0=5)
+    assert expected[0].sum() > 1000 and expected[1].sum() > 1000 and expected[2].sum() > 1000
+    arrays = [wp.array(state[k], dtype=wp.int64 if k == "winding" else wp.float64) for k in FIELDS]
+    extra = [wp.array(carry[k], dtype=wp.int64) for k in CARRY_FIELDS]
+    counts = wp.zeros(3 * BINS, dtype=wp.int64)
+    advance_map_transport.launch("cpu", arrays, [*extra, counts], 5, 1500, p, body=body)
+    np.testing.assert_array_equal(counts.numpy().reshape(3, BINS), expected)
+    for name, array in zip(CARRY_FIELDS, extra, strict=True):
+        np.testing.assert_array_equal(array.numpy(), expected_carry[name], err_msg=name)
+    for name, array in zip(FIELDS, arrays, strict=True):
+        np.testing.assert_array_equal(array.numpy(), expected_state[name], err_msg=name)

@@ -394,7 +394,8 @@ class Ensemble:
 
     def __repr__(self) -> str:
         p = self.params
+        force = f"b1={p.b1!r}, b2={p.b2!r}" if p.is_paper else f"table={p.table!r}"
         return (
-            f"Ensemble(K={p.K!r}, b1={p.b1!r}, b2={p.b2!r}, points={self.points}, step={self.step}, "
+            f"Ensemble(K={p.K!r}, {force}, points={self.points}, step={self.step}, "
             f"device={self.device!r}, threads={self.threads})"
         )

@@ -120,7 +120,7 @@ class AdvanceKernel:
             return self
         if table.key not in self._forces:
             suffix = f"{self.module_suffix}.force_{table.key}"
-            self._forces[table.key] = AdvanceKernel(self.variant, suffix, force_bodies(table))
+            self._forces[table.key] = type(self)(self.variant, suffix, force_bodies(table))
         return self._forces[table.key]
 
     def kernel(self, device: str, body: str | None = None, table: Any = None) -> wp.Kernel:
