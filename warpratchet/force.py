@@ -60,7 +60,8 @@ class Term:
 
 @dataclass(frozen=True)
 class Piece:
-    """One piece in kernel form, ``f = value + slope (x - anchor)`` on ``[start, end)``.
+    """One piece in kernel form, ``f = value + slope (x - anchor)``, from the previous piece's
+    ``end`` (0 for the first) to its own.
 
     ``closed`` says that the knot ``end`` belongs to this piece (``x <= end``) rather than to the
     next (``x < end``). A zero ``value`` or ``anchor`` and a slope of ``-1`` or ``1`` drop the
