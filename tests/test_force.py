@@ -290,3 +290,16 @@ def test_transport_counts_of_another_force_equal_the_numpy_twins(body):
         np.testing.assert_array_equal(array.numpy(), expected_carry[name], err_msg=name)
     for name, array in zip(FIELDS, arrays, strict=True):
         np.testing.assert_array_equal(array.numpy(), expected_state[name], err_msg=name)
+
+
+def test_the_portable_body_of_another_force_compiles_for_cuda(tmp_path):
+    """The generated portable body (what CUDA runs) of the 6-piece force, through NVRTC."""
+    import warp as wp
+
+    archs = sorted(getattr(wp._src.context.runtime, "nvrtc_supported_archs", None) or [])
+    if not archs:
+        pytest.skip("Warp has no NVRTC on this machine (CUDA-enabled warp-lang needed)")
+    module = kernels.advance_map.for_force(FORCES[2]).portable.module
+    assert module is not kernels.advance_map.portable.module
+    (artifact,) = wp.compile_aot_module(module, arch=86 if 86 in archs else archs[-1], module_dir=tmp_path)
+    assert artifact.stat().st_size > 0
