@@ -40,6 +40,7 @@ __all__ = [
     "paper_coefficients",
     "cpp_source",
     "warp_source",
+    "python_source",
     "parse_numbers",
     "numbers_text",
     "MAX_PIECES",
@@ -409,7 +410,9 @@ def _operations(piece: Piece, s: int) -> list[tuple[str, str, str, str]]:
 
 def _term(piece: Piece, name: str, struct: str, literal) -> str:
     term = getattr(piece, name)
-    return f"{struct}.{term.field}" if term.field else literal(term.value)
+    if term.field is None:
+        return literal(term.value)
+    return f"{struct}.{term.field}" if struct else term.field
 
 
 def _assignments(force: Force, struct: str, literal) -> list[tuple[str, str]]:
@@ -549,3 +552,27 @@ def warp_source(force: Force, name: str) -> str:
         + "    one = wp.float64(1.0)\n    zero = wp.float64(0.0)\n"
         + f"    return wp.where({strip}, one, zero)\n"
     )
+
+
+def python_source(force: Force, name: str, arguments: Sequence[str] | None = None) -> str:
+    """Python source of a scalar function ``name(x, *arguments)`` returning ``f, f'``, one branch
+    a piece (the benchmarks' Numba contender). ``arguments``: the run-time coefficients
+    (:meth:`Force.fields`) in the order the function takes them (default: that of ``fields``)."""
+
+    def lit(value: float) -> str:
+        return repr(value)
+
+    fields = ", ".join(force.fields() if arguments is None else arguments)
+    lines = [f"def {name}(x{', ' if fields else ''}{fields}):"]
+    ops = {}
+    for result, expr in _assignments(force, "", lit):
+        ops.setdefault(int(result[1:]), []).append(f"{result} = {expr}")
+    for s, piece in enumerate(force.pieces):
+        if s < force.n_pieces - 1:
+            op = "<=" if piece.closed else "<"
+            lines.append(f"    {'if' if s == 0 else 'elif'} x {op} {_term(piece, 'end', '', lit)}:")
+        else:
+            lines.append("    else:" if s else "    if True:")
+        lines += [f"        {line}" for line in ops[s]]
+        lines.append(f"        return f{s}, {_term(piece, 'slope', '', lit)}")
+    return "\n".join(lines) + "\n"
