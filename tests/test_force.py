@@ -303,3 +303,41 @@ def test_the_portable_body_of_another_force_compiles_for_cuda(tmp_path):
     assert module is not kernels.advance_map.portable.module
     (artifact,) = wp.compile_aot_module(module, arch=86 if 86 in archs else archs[-1], module_dir=tmp_path)
     assert artifact.stat().st_size > 0
+
+
+#: FORCES[2]: its pieces of positive slope are two intervals.
+SEVERAL_STRIPS = ["--knots", "0,0.15,0.3,0.45,0.6,0.8", "--values", "0.05,0.3,-0.1,0.25,-0.2,-0.20625"]
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (["run", "--K", "3", "--knots", "0,0.3,0.6", "--values", "0,0.4,-0.4"], "mean int_0^1 f dx = -0.02"),
+        (
+            ["orbits", "--K", "3", "--knots", "0,0.6,0.3", "--values", "0,0.4,-0.4", "--period", "1"],
+            "knots[2]",
+        ),
+        (["sumrule", "--K", "3", "--knots", "0,0.5", "--values", "0.7,-0.7"], "max |K f| = 2.1"),
+        (
+            ["run", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--knots", "0,0.5", "--values", "0,0"],
+            "two forces",
+        ),
+        (["theory", "--K", "3", "--knots", "0,0.5"], "values is missing"),
+        (["run", "--K", "3", *SEVERAL_STRIPS, "--init", "strip"], "has none or several"),
+    ],
+)
+def test_the_cli_refuses_a_bad_force_in_one_line_with_status_2(capsys, argv, needle):
+    from support import refused
+
+    assert needle in refused(capsys, argv)
+
+
+@pytest.mark.parametrize(
+    ("given", "text"),
+    [("0.3", "0.3"), (0.3, "0.3"), ("1/3", "1/3"), (Fraction(-7, 40), "-0.175"), ("1e-3", "0.001"), (2, "2")],
+)
+def test_numbers_are_exact_and_their_text_reads_back_the_same(given, text):
+    from warpratchet.force import numbers_text, parse_numbers
+
+    (value,) = parse_numbers("knots", [given])
+    assert numbers_text([value]) == text and parse_numbers("knots", text) == (value,)
