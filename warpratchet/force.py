@@ -516,9 +516,10 @@ def _cpp_strip(force: Force, struct: str, literal) -> str:
     return terms[0] if len(terms) == 1 else "(" + " | ".join(terms) + ")"
 
 
-def warp_source(force: Force, name: str) -> str:
-    """Python source of a ``wp.func`` ``name(x, p)`` for the portable body: returns ``f``,
-    ``K f'`` as ``p.K * slope`` and a function of ``x`` is in the strip (``in_strip`` as 1.0/0.0).
+def warp_source(force: Force, name: str, struct: str = "Any") -> str:
+    """Python source of two ``wp.func``s for the portable body: ``name(x, p)`` returns ``f`` and
+    ``f'``, ``name_strip(x, p)`` 1.0 where ``x`` is in the strip, else 0.0; ``p`` is annotated
+    ``struct`` (the kernels' ``Coefficients``, a name the source is executed with).
 
     Written with ``wp.where`` as the step's other selects, constants as ``wp.float64(repr)``.
     """
@@ -546,9 +547,9 @@ def warp_source(force: Force, name: str) -> str:
     ]
     strip = " or ".join(terms) if terms else "False"
     return (
-        f"def {name}(x: wp.float64, p: Any):\n"
+        f"def {name}(x: wp.float64, p: {struct}):\n"
         + "\n".join(body)
-        + f"\n\n\ndef {name}_strip(x: wp.float64, p: Any):\n"
+        + f"\n\n\ndef {name}_strip(x: wp.float64, p: {struct}):\n"
         + "    one = wp.float64(1.0)\n    zero = wp.float64(0.0)\n"
         + f"    return wp.where({strip}, one, zero)\n"
     )

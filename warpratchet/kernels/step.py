@@ -201,7 +201,7 @@ def _generated_func(source: str, name: str) -> wp.Function:
 def _force_funcs(force: Force, tag: str) -> tuple[wp.Function, wp.Function]:
     """The force and strip of ``force`` as ``wp.func``s (:func:`warpratchet.force.warp_source`)."""
     name = f"_force_{tag}"
-    source = warp_source(force, name).replace("p: Any", "p: Coefficients")
+    source = warp_source(force, name, "Coefficients")
     return _generated_func(source, name), _generated_func(source, f"{name}_strip")
 
 
