@@ -226,17 +226,30 @@ def test_the_sum_rule_balances_for_a_force_whose_islands_have_period_2_and_4():
     assert abs(result.A_sumrule - result.A_direct) <= tolerance
 
 
-def test_a_sweep_over_K_runs_another_force_and_refuses_a_sweep_file(tmp_path):
+def test_a_sweep_over_K_of_another_force_is_stored_resumed_and_verified(tmp_path):
+    """sweep.k_path with a table: rows with NaN b1, b2 and domain "n/a"; a sweep file stores the
+    force, resumes (the same rows, nothing recomputed), verifies, and refuses another force."""
     from warpratchet import sweep
+    from warpratchet.sweep.verify import verify_sweep
 
     table = Force.from_knots(["0", "0.25", "0.75", "0.95"], ["-0.2", "0.3", "0", "-0.66"])
     points = sweep.k_path([2.8, 3.0], table=table)
-    rows = sweep.run_sweep(points, sweep.SweepSpec(points=1000, steps=2000, init="torus"))
+    spec = sweep.SweepSpec(points=1000, steps=2000, init="torus")
+    out = tmp_path / "s.h5"
+    rows = sweep.run_sweep(points, spec, out=out)
     assert [row["K"] for row in rows] == [2.8, 3.0]
     assert all(np.isnan(row["b1"]) and row["domain"] == "n/a" and np.isfinite(row["A"]) for row in rows)
-    with pytest.raises(ParameterError, match="a sweep file stores K, b1, b2"):
-        sweep.run_sweep(points, sweep.SweepSpec(points=1000, steps=2000), out=tmp_path / "s.h5")
-    assert not (tmp_path / "s.h5").exists()
+    computed = []
+    again = sweep.run_sweep(points, spec, out=out, on_row=computed.append)
+    assert not computed and [row["A"] for row in again] == [row["A"] for row in rows]
+    assert sweep.read_definition(out)[0] == points
+    problems, _ = verify_sweep(out)
+    assert problems == []
+    other = sweep.k_path([2.8, 3.0], table=FORCES[0])
+    with pytest.raises(ValueError, match="holds a different sweep"):
+        sweep.run_sweep(other, spec, out=out)
+    with pytest.raises(ParameterError, match="these points have 2 forces"):
+        sweep.run_sweep([*points, MapParams(3.0, 0.1, 0.01)], spec, out=tmp_path / "t.h5")
 
 
 def test_an_archive_stores_the_force_and_resumes_it_bit_for_bit(tmp_path, capsys):

@@ -118,7 +118,7 @@ def sampled_chunks(params: MapParams, init: str, points: int, seed: int):
         return n, grid()
     if init not in SAMPLERS:
         raise ValueError(f"init = {init!r} is not one of {', '.join(SAMPLERS)}")
-    if init == "strip":
+    if init == "strip" and isinstance(params, MapParams):  # (the ensemble refuses a non-MapParams)
         _strip_x(params, np.zeros(0))  # refuses a force without one strip interval, before any work
     rng_x = np.random.default_rng(seed)
     rng_p = np.random.default_rng(seed)

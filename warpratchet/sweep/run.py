@@ -233,14 +233,16 @@ def run_sweep(
         Ensemble.check_fits(spec.points)
     if client is not None and not isinstance(client, str):
         _connect(client)  # checks the type (and that Dask is installed) before any file is touched
-    if out is not None and not all(p.is_paper for p in params_list):
+    forces = {p.table for p in params_list if not p.is_paper}
+    if out is not None and (len(forces) > 1 or (forces and any(p.is_paper for p in params_list))):
         raise ParameterError(
-            "a sweep file stores K, b1, b2 per point (Eq. fx); a sweep of another force runs "
-            "without out (--out)"
+            "a sweep file holds the paper's force (b1, b2 per point) or one other force (K per point); "
+            f"these points have {len(forces) + any(p.is_paper for p in params_list)} forces"
         )
     table = np.array([[p.K, p.b1, p.b2] for p in params_list], dtype=np.float64)
 
-    sweep_file = SweepFile(out, table, spec, force) if out is not None else None
+    other = forces.pop().as_strings() if forces else None
+    sweep_file = SweepFile(out, table, spec, force, other) if out is not None else None
     try:
         done = {row["index"]: row for row in sweep_file.rows()} if sweep_file is not None else {}
         todo = [(i, p) for i, p in enumerate(params_list) if i not in done]
