@@ -149,9 +149,9 @@ def test_the_strip_sampler_draws_from_the_pieces_of_positive_slope():
         Ensemble.sample(several, 100, init="strip")
 
 
-def _newton_cycles(knots, values, K: float, m: int, starts: int = 60) -> list[np.ndarray]:
-    """Periodic points of period ``m`` by Newton's method on ``M^m(z) - z = 0`` (mod 1), from a
-    ``starts x starts`` grid, with a force interpolated here (``np.interp``), not the table."""
+def _independent_map(knots, values, K: float, m: int):
+    """``z -> (M^m z, DM^m)`` on the lifted plane, with a force interpolated here (``np.interp``),
+    not the table."""
     xs = np.array([float(Fraction(k)) for k in knots] + [1.0])
     fs = np.array([float(Fraction(v)) for v in values] + [float(Fraction(values[0]))])
     slopes = np.diff(fs) / np.diff(xs)
@@ -167,6 +167,13 @@ def _newton_cycles(knots, values, K: float, m: int, starts: int = 60) -> list[np
             jac = np.array([[1.0 + a, 1.0], [a, 1.0]]) @ jac
         return np.array([x, p]), jac
 
+    return walk
+
+
+def _newton_cycles(knots, values, K: float, m: int, starts: int = 60) -> list[np.ndarray]:
+    """Periodic points of period ``m`` by Newton's method on ``M^m(z) - z = 0`` (mod 1), from a
+    ``starts x starts`` grid (:func:`_independent_map`)."""
+    walk = _independent_map(knots, values, K, m)
     found = []
     grid = (np.arange(starts) + 0.5) / starts
     for x0 in grid:
@@ -354,3 +361,18 @@ def test_numbers_are_exact_and_their_text_reads_back_the_same(given, text):
 
     (value,) = parse_numbers("knots", [given])
     assert numbers_text([value]) == text and parse_numbers("knots", text) == (value,)
+
+
+def test_a_flat_piece_makes_families_of_parabolic_orbits_that_the_map_returns_exactly():
+    """The 4-piece force with a piece of slope 0 has, at K = 3 and period 3, families (polygons of
+    periodic points); the independent map returns every polygon's centroid to itself (mod 1)."""
+    knots, values = ["0", "0.2", "0.5", "0.7"], ["0", "0.2", "-0.1", "-0.1"]
+    p = MapParams(3.0, table=Force.from_knots(knots, values))
+    families = [f for f in enumerate_orbits(p, 3).families if f.shape == "polygon"]
+    assert families and all(f.area > 0 for f in families)
+    walk = _independent_map(knots, values, p.K, 3)
+    for family in families:
+        z = family.vertices.mean(0)
+        end, jac = walk(z)
+        assert np.max(np.abs((end - z + 0.5) % 1.0 - 0.5)) < 1e-12
+        assert np.allclose(jac, np.eye(2)) or np.isclose(np.trace(jac), 2.0)  # parabolic: tr DM^3 = 2
