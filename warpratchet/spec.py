@@ -365,6 +365,10 @@ class RunSpec(_Spec):
     chunk_steps : int or None
         Steps between observer calls, ``1..MAX_CHUNK_STEPS``; ``None``: about 2.5e8
         point-steps. Results do not depend on it.
+    knots, values : str or None
+        Another force instead of ``b1, b2`` (:meth:`warpratchet.force.Force.from_knots`): its
+        knots ``0 = x_0 < ... < x_{n-1} < 1`` and values, comma-separated exact numbers, stored
+        as their exact text; the mean must be exactly zero and ``max |K f| < 2``.
 
     Examples
     --------
