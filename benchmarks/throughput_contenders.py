@@ -22,6 +22,7 @@ import numpy as np
 
 from warpratchet import Ensemble, MapParams, reference
 from warpratchet.ensemble import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
+from warpratchet.force import Force, python_source
 from warpratchet.sumrule import IndicatorEnsemble
 
 #: The benchmark's ensemble: strip B of Eq. (B), seed 1.
@@ -95,11 +96,15 @@ def numpy_contenders(params: MapParams) -> tuple[list[Contender], str]:
 # -- Numba ------------------------------------------------------------------------------------------
 @functools.cache
 def _numba_advance() -> Callable[..., None]:
-    """The Numba twin of the kernel, compiled on first use (closure constants are frozen)."""
+    """The Numba twin of the kernel, compiled on first use (closure constants are frozen); the
+    force's branches are generated from the paper's piece table (:func:`warpratchet.force.python_source`)."""
     import numba
 
     threshold = RENORM_THRESHOLD
     every = RENORM_CHECK_EVERY
+    namespace: dict = {}
+    exec(python_source(Force.paper(0.5, 0.25), "force_at", MAP_FIELDS), namespace)  # noqa: S102
+    force_at = numba.njit(fastmath=False, error_model="numpy", inline="always")(namespace["force_at"])
 
     # fastmath=False (the default) keeps IEEE semantics: no FMA contraction, no reassociation.
     @numba.njit(parallel=True, fastmath=False, error_model="numpy")
@@ -108,16 +113,7 @@ def _numba_advance() -> Callable[..., None]:
             xi, qi, dxi, dpi, si = x[i], q[i], dx[i], dp[i], lsum[i]
             w = 0.0
             for s in range(steps):
-                # Eq. (fx) and its slope
-                if xi <= b1:
-                    f = l1 * xi
-                    slope = l1
-                elif xi < right:
-                    f = c - xi
-                    slope = -1.0
-                else:
-                    f = l2 * (xi - 1.0)
-                    slope = l2
+                f, slope = force_at(xi, b1, right, l1, l2, c)  # Eq. (fx) and its slope
                 t = qi + K * f
                 fl = np.floor(t)  # math.floor would return an integer
                 qi = t - fl
@@ -312,6 +308,14 @@ def warp_indicator_contenders(
     return rows, build
 
 
+#: The paper's run-time coefficients, in the order the contenders take them after ``K``.
+MAP_FIELDS = ("b1", "right", "l1", "l2", "c")
+
+
 def _map_args(params: MapParams) -> tuple[float, ...]:
-    """The kernel's scalar arguments ``K, b1, right = 1 - b2, l1, l2, c`` (Eqs. fx, mmc)."""
-    return (params.K, params.b1, 1.0 - params.b2, params.l1, params.l2, params.c)
+    """The contenders' scalar arguments ``K, b1, right = 1 - b2, l1, l2, c`` (Eqs. fx, mmc), read
+    from the force's piece table as the Warp kernels read them (the contenders are written by hand
+    for the three pieces of Eq. fx)."""
+    params.require_paper("the C and Numba contenders")
+    fields = params.table.fields()
+    return (params.K, *(fields[name] for name in MAP_FIELDS))

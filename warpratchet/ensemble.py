@@ -353,7 +353,7 @@ class Ensemble:
         chunk_steps = check_count("chunk_steps", chunk_steps, 1, MAX_CHUNK_STEPS)
         try:
             # Compile (or load from cache) before any thread launches.
-            self._kernel.load(self.device)
+            self._kernel.load(self.device, table=self.params.table)
             use_pool = wp.get_device(self.device).is_cpu and self.threads > 1 and self.points > 1
             pool = ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet") if use_pool else None
             run_chunks(self, self.step + steps, observers, chunk_steps, pool)
@@ -394,7 +394,8 @@ class Ensemble:
 
     def __repr__(self) -> str:
         p = self.params
+        force = f"b1={p.b1!r}, b2={p.b2!r}" if p.is_paper else f"table={p.table!r}"
         return (
-            f"Ensemble(K={p.K!r}, b1={p.b1!r}, b2={p.b2!r}, points={self.points}, step={self.step}, "
+            f"Ensemble(K={p.K!r}, {force}, points={self.points}, step={self.step}, "
             f"device={self.device!r}, threads={self.threads})"
         )

@@ -30,6 +30,7 @@ from __future__ import annotations
 import math
 import os
 import sys
+from fractions import Fraction
 
 from .errors import ParameterError, ResourceError
 from .params import MapParams
@@ -61,8 +62,9 @@ FLOAT64_MAX = sys.float_info.max
 #: import Warp and this module must not; ``tests/test_limits.py`` checks that the values agree).
 RENORM_THRESHOLD = 1.0e100
 RENORM_CHECK_EVERY = 8
-#: Largest growth factor per step ``g = 2 + K max(l1, l2)`` whose ``g^8`` from the threshold stays
-#: below the float64 maximum: ``(FLOAT64_MAX / RENORM_THRESHOLD)^(1/8) = 1.076e26``.
+#: Largest growth factor per step ``g = 2 + K max |f'|`` (``2 + K max(l1, l2)`` for Eq. fx) whose
+#: ``g^8`` from the threshold stays below the float64 maximum:
+#: ``(FLOAT64_MAX / RENORM_THRESHOLD)^(1/8) = 1.076e26``.
 MAX_TANGENT_GROWTH = (FLOAT64_MAX / RENORM_THRESHOLD) ** (1.0 / RENORM_CHECK_EVERY)
 
 
@@ -101,8 +103,30 @@ def smallest_width(name: str, params) -> float:
     return rounded if carried(rounded) else bound
 
 
+#: Largest ``max |K f|`` the kernels carry: a step then drops ``k = floor(q + K f)`` in
+#: ``{-2, ..., 2}``, which the transport's gain codes and the orbits' symbol alphabet encode
+#: (the paper's family has ``max |f| < 1/2``, so every ``K < 4`` is inside).
+MAX_KICK = 2
+
+
 def kernel_range_error(params) -> str | None:
     """Why the kernels cannot carry ``params`` (a ``MapParams``), or None if they can."""
+    if not params.is_paper:
+        table = params.table
+        kick = Fraction(params.K) * table.max_value
+        growth = _growth(params.K, float(table.max_slope))
+        if not kick < MAX_KICK:
+            return (
+                f"max |K f| = {float(kick):.6g} is outside the range the kernels can carry: max |K f| < "
+                f"{MAX_KICK} (K < {float(MAX_KICK / table.max_value):.6g} for this force)"
+            )
+        if not growth <= MAX_TANGENT_GROWTH:
+            return (
+                f"max |f'| = {float(table.max_slope):.6g} is outside the range the kernels can carry at "
+                f"K = {params.K!r}: 2 + K max |f'| <= {MAX_TANGENT_GROWTH:.3g} (a tangent would overflow "
+                "float64 between renormalisations)"
+            )
+        return None
     for name, slope in (("b1", params.l1), ("b2", params.l2)):
         growth = _growth(params.K, slope)
         if not growth <= MAX_TANGENT_GROWTH:  # also an infinite slope (a subnormal width)

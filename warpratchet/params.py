@@ -4,32 +4,29 @@ The map (Eq. cpem of Dana & Roitberg) is the generalized kicked rotor
 
     p' = p + K f(x),    x' = x + p'  (mod 1),    0 < K < 4,
 
-with the continuous, piecewise-linear, zero-mean force of Eq. (fx)
-
-    f(x) = l1 x          for 0 <= x <= b1,
-           c - x         for b1 < x < 1 - b2,
-           l2 (x - 1)    for 1 - b2 <= x < 1,
-
-whose slopes and offset follow from continuity and the ratchet condition
-``int_0^1 f dx = 0`` (Eq. mmc, derived in Appendix A).
+with a continuous, piecewise-linear, zero-mean force ``f``, defined once as a piece table in
+:mod:`warpratchet.force`: the paper's family of Eq. (fx) (strip widths ``b1, b2``, slopes and
+offset from Eq. mmc, Appendix A), or any other table (``MapParams(K, table=Force.from_knots(...))``).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from .errors import ParameterError, check_real
+from .force import Force, paper_coefficients
 
 # check_real is re-exported: it was params.check_real before errors.py held the one validator set.
-__all__ = ["MapParams", "check_real"]
+__all__ = ["MapParams", "check_real", "map_text"]
 
 
 @dataclass(frozen=True)
 class MapParams:
-    """The three free parameters of the map and the derived force coefficients.
+    """The map's parameters: ``K`` and the force, the paper's ``b1, b2`` or a piece table.
 
     Parameters
     ----------
@@ -37,7 +34,10 @@ class MapParams:
         Kick strength, ``0 < K < 4`` (the middle branch of ``DM`` is elliptic, Eq. eig).
     b1, b2 : float
         Widths of the left and right hyperbolic branches of the force (Eq. fx);
-        ``b1 > 0``, ``b2 > 0``, ``b1 + b2 < 1``.
+        ``b1 > 0``, ``b2 > 0``, ``b1 + b2 < 1``. Left out (None) with ``table``.
+    table : Force, optional
+        Any other force (:meth:`warpratchet.force.Force.from_knots`); for the paper's family it
+        is :meth:`~warpratchet.force.Force.paper` of ``b1, b2``, filled in.
 
     Raises
     ------
@@ -47,11 +47,19 @@ class MapParams:
     """
 
     K: float
-    b1: float
-    b2: float
+    b1: float | None = None
+    b2: float | None = None
+    table: Force | None = field(default=None, repr=False)
 
     def __post_init__(self) -> None:
         K = check_real("K", self.K, 0, 4, low_open=True, high_open=True)
+        if self.table is not None and self.table.family != "paper":
+            if self.b1 is not None or self.b2 is not None:
+                raise ParameterError("b1, b2 and a force table are two forces: give one of them")
+            if not isinstance(self.table, Force):
+                raise ParameterError(f"table = {self.table!r} is not a warpratchet.force.Force")
+            object.__setattr__(self, "K", K)
+            return
         b1 = check_real("b1", self.b1)
         b2 = check_real("b2", self.b2)
         # The strip widths are bounded jointly (b1 + b2 < 1), which no single-value range says; the
@@ -64,38 +72,50 @@ class MapParams:
         object.__setattr__(self, "K", K)
         object.__setattr__(self, "b1", b1)
         object.__setattr__(self, "b2", b2)
+        object.__setattr__(self, "table", Force.paper(b1, b2))
+
+    @property
+    def is_paper(self) -> bool:
+        """Whether the force is the paper's family of Eq. (fx) (``b1, b2`` given)."""
+        return self.table.family == "paper"
+
+    def require_paper(self, name: str) -> None:
+        """:class:`ParameterError` naming ``name`` unless the force is Eq. (fx) (``b1, b2``)."""
+        if not self.is_paper:
+            raise ParameterError(
+                f"{name} belongs to the paper's force of Eq. (fx); this map's force has "
+                f"{self.table.describe()}"
+            )
+
+    def __repr__(self) -> str:
+        if self.is_paper:
+            return f"MapParams(K={self.K!r}, b1={self.b1!r}, b2={self.b2!r})"
+        return f"MapParams(K={self.K!r}, table={self.table!r})"
 
     # -- derived coefficients, Eq. (mmc) ------------------------------------------------------
     @property
     def b(self) -> float:
         """Total width ``b = b1 + b2`` of the hyperbolic strip B (Eq. B)."""
+        self.require_paper("b")
         return self.b1 + self.b2
 
     @property
-    def _gap(self) -> float:
-        # 1 - b1 - b2 correctly rounded: (1 - b1) - b2 would lose digits as b1 + b2 -> 1.
-        return math.fsum((1.0, -self.b1, -self.b2))
-
-    @property
     def l1(self) -> float:
-        """Left slope ``l1 = (1-b1)(1-b1-b2) / (b1 (2-b1-b2))``, Eq. (mmc).
-
-        Each factor is correctly rounded, so ``l1`` is good to a few ulps from ``b1 ~ 1e-300``
-        (the elliptic-sawtooth limit of Fig. 2) up to ``b1 + b2 -> 1``.
-        """
-        b1, b2 = self.b1, self.b2
-        return (1.0 - b1) * self._gap / (b1 * math.fsum((2.0, -b1, -b2)))
+        """Left slope ``l1`` of Eq. (mmc) (:func:`warpratchet.force.paper_coefficients`)."""
+        self.require_paper("l1")
+        return paper_coefficients(self.b1, self.b2)[0]
 
     @property
     def l2(self) -> float:
-        """Right slope ``l2 = (1-b2)(1-b1-b2) / (b2 (2-b1-b2))``, Eq. (mmc)."""
-        b1, b2 = self.b1, self.b2
-        return (1.0 - b2) * self._gap / (b2 * math.fsum((2.0, -b1, -b2)))
+        """Right slope ``l2`` of Eq. (mmc)."""
+        self.require_paper("l2")
+        return paper_coefficients(self.b1, self.b2)[1]
 
     @property
     def c(self) -> float:
-        """Offset of the middle branch ``c = (1-b2) / (2-b1-b2)``, Eq. (mmc)."""
-        return (1.0 - self.b2) / math.fsum((2.0, -self.b1, -self.b2))
+        """Offset ``c`` of the middle branch, Eq. (mmc)."""
+        self.require_paper("c")
+        return paper_coefficients(self.b1, self.b2)[2]
 
     @property
     def alpha(self) -> float:
@@ -106,13 +126,16 @@ class MapParams:
         """Parameters and derived coefficients, as stored in archives and JSON output.
 
         With ``derived=False`` only ``K, b1, b2``, under RunSpec's names (a run's settings, a report).
+        Another force gives ``K`` and its ``knots``, ``values`` (decimal strings, exact).
         """
+        if not self.is_paper:
+            return {"K": self.K, **self.table.as_strings()}
         free = {"K": self.K, "b1": self.b1, "b2": self.b2}
         return {**free, "l1": self.l1, "l2": self.l2, "c": self.c} if derived else free
 
-    # -- the force, Eq. (fx), in NumPy ----------------------------------------------------------
+    # -- the force in NumPy (the kernels' roundings, from the piece table) -----------------------
     def force(self, x: np.ndarray | float) -> np.ndarray:
-        """Force ``f(x)`` of Eq. (fx) for ``x`` in ``[0, 1)`` (periodically continued).
+        """Force ``f(x)`` (Eq. fx for the paper's family) for ``x`` in ``[0, 1)`` (periodically continued).
 
         Parameters
         ----------
@@ -122,17 +145,13 @@ class MapParams:
         Returns
         -------
         ndarray, shape (n,)
-            ``f(x)``, the same branch selection as the Warp kernel.
+            ``f(x)``, the same branch selection and roundings as the Warp kernels.
         """
-        x = np.mod(np.asarray(x, dtype=np.float64), 1.0)
-        return np.where(
-            x <= self.b1, self.l1 * x, np.where(x < 1.0 - self.b2, self.c - x, self.l2 * (x - 1.0))
-        )
+        return self.table.evaluate(np.mod(np.asarray(x, dtype=np.float64), 1.0))[0]
 
     def force_slope(self, x: np.ndarray | float) -> np.ndarray:
-        """Slope ``f'(x)`` (``l1``, ``-1`` or ``l2``), the entry of ``DM`` (Eq. fx)."""
-        x = np.mod(np.asarray(x, dtype=np.float64), 1.0)
-        return np.where(x <= self.b1, self.l1, np.where(x < 1.0 - self.b2, -1.0, self.l2))
+        """Slope ``f'(x)`` (``l1``, ``-1`` or ``l2`` for Eq. fx), the entry of ``DM``."""
+        return self.table.evaluate(np.mod(np.asarray(x, dtype=np.float64), 1.0))[1]
 
     def jacobian(self, x: np.ndarray | float) -> np.ndarray:
         """Tangent map ``DM`` at ``x``, shape ``(..., 2, 2)`` acting on ``(dx, dp)``.
@@ -143,3 +162,10 @@ class MapParams:
         kf = self.K * self.force_slope(x)
         one = np.ones_like(kf)
         return np.stack([np.stack([one + kf, one], -1), np.stack([kf, one], -1)], -2)
+
+
+def map_text(values: Mapping) -> str:
+    """``K = 3, b1 = 0.1, b2 = 0.01``, or ``K = 2, knots = ..., values = ...`` for another force."""
+    if values.get("knots") is not None:
+        return f"K = {values['K']}, knots = {values['knots']}, values = {values['values']}"
+    return f"K = {values['K']}, b1 = {values['b1']}, b2 = {values['b2']}"

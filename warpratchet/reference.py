@@ -22,10 +22,7 @@ __all__ = ["advance", "advance_indicators", "advance_renormalising_every_step", 
 
 
 def _step(p: MapParams, x, q, w, dx, dp):
-    in_left = x <= p.b1
-    in_middle = x < 1.0 - p.b2
-    f = np.where(in_left, p.l1 * x, np.where(in_middle, p.c - x, p.l2 * (x - 1.0)))
-    slope = np.where(in_left, p.l1, np.where(in_middle, -1.0, p.l2))
+    f, slope = p.table.evaluate(x)  # the force's piece table, as the kernels evaluate it
     t = q + p.K * f
     fl = np.floor(t)
     q = t - fl

@@ -74,8 +74,11 @@ def inverse_torus_map(params: MapParams, x, p) -> tuple[np.ndarray, np.ndarray]:
 
 
 def in_strip(params: MapParams, x, p) -> np.ndarray:
-    """Membership of the strip ``B`` of Eq. (B): ``x <= b1`` or ``x >= 1 - b2`` (any ``p``)."""
+    """Membership of the strip ``B`` of Eq. (B): ``x <= b1`` or ``x >= 1 - b2`` (any ``p``); for
+    another force, its pieces with ``f' > 0`` (:meth:`~warpratchet.force.Force.in_strip`)."""
     x, _ = _points(x, p)
+    if not params.is_paper:
+        return params.table.in_strip(x)
     return (x <= params.b1) | (x >= 1.0 - params.b2)
 
 
@@ -94,6 +97,7 @@ def in_MB(params: MapParams, x, p) -> np.ndarray:
     Written as ``d = (p - x) mod 1`` with ``d <= b2`` or ``d >= 1 - b1``; equal to
     ``in_image(params, x, p, 1)`` since ``x0 = x - p``.
     """
+    params.require_paper("in_MB")
     x, p = _points(x, p)
     d = _fold(p - x)
     return (d <= params.b2) | (d >= 1.0 - params.b1)
@@ -105,6 +109,7 @@ def in_B1(params: MapParams, x, p) -> np.ndarray:
     ``b1 < x < 1 - b2`` and ``x - b1 <= p <= x + b2`` with no wrap in ``p``: over the middle
     interval the band of Eq. (B1) lies inside ``0 <= p < 1``.
     """
+    params.require_paper("in_B1")
     x, p = _points(x, p)
     middle = (x > params.b1) & (x < 1.0 - params.b2)
     return middle & (p >= x - params.b1) & (p <= x + params.b2)
@@ -157,6 +162,7 @@ def B2_vertices(params: MapParams) -> np.ndarray:
     ValueError
         If ``K != 3``, or if ``b1 + b2 >= 1/2`` (no island, Eq. ccs; Eq. xj then leaves the torus).
     """
+    params.require_paper("B2_vertices")
     if params.K != 3.0:
         raise ValueError(f"K = {params.K!r}: Eqs. (xj)-(pj) hold only at K = 3 (Appendix C)")
     b1, b2, b, c = params.b1, params.b2, params.b, params.c

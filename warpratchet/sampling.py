@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from .errors import check_count
+from .errors import ParameterError, check_count
 from .params import MapParams
 from .spec import SAMPLERS
 
@@ -48,8 +48,18 @@ def sample_strip(params: MapParams, n: int, rng: np.random.Generator) -> tuple[n
 
 
 def _strip_x(params: MapParams, u: np.ndarray) -> np.ndarray:
-    """Positions in B from uniform ``u`` in [0, 1)."""
-    return np.mod(-params.b2 + params.b * u, 1.0)
+    """Positions in B from uniform ``u`` in [0, 1); for another force, in its strip (the pieces
+    with ``f' > 0``, :meth:`~warpratchet.force.Force.strip_interval`) when that is one interval."""
+    if params.is_paper:
+        return np.mod(-params.b2 + params.b * u, 1.0)
+    interval = params.table.strip_interval()
+    if interval is None:
+        raise ParameterError(
+            "init = 'strip' samples one interval of positive slope f' > 0; the force with "
+            f"{params.table.describe()} has none or several (use init 'torus' or 'grid')"
+        )
+    start, width = interval
+    return np.mod(start + width * u, 1.0)
 
 
 def sample_torus(n: int, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
@@ -108,6 +118,8 @@ def sampled_chunks(params: MapParams, init: str, points: int, seed: int):
         return n, grid()
     if init not in SAMPLERS:
         raise ValueError(f"init = {init!r} is not one of {', '.join(SAMPLERS)}")
+    if init == "strip" and isinstance(params, MapParams):  # (the ensemble refuses a non-MapParams)
+        _strip_x(params, np.zeros(0))  # refuses a force without one strip interval, before any work
     rng_x = np.random.default_rng(seed)
     rng_p = np.random.default_rng(seed)
     rng_p.bit_generator.advance(points)

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from .errors import ParameterError, check_choice, check_count, check_real
+from .force import Force, numbers_text, parse_numbers
 from .limits import MAX_POINTS, MAX_STEP, check_kernel_range
 from .params import MapParams
 
@@ -82,6 +83,11 @@ def _real(name: str, value: object) -> float:
     return check_real(name, value)
 
 
+def _numbers(name: str, value: object) -> str:
+    # knots, values: exact numbers, stored as their exact text (their joint checks are Force's).
+    return numbers_text(parse_numbers(name, value))
+
+
 def _count(low: int, high: int) -> Callable[[str, object], int]:
     def check(name: str, value: object) -> int:
         return check_count(name, value, low, high)
@@ -132,8 +138,38 @@ _REQUIRED = dataclasses.MISSING
 #: name -> (default, Setting): the one table of every setting of a run.
 _SETTINGS: dict[str, tuple[Any, Setting]] = {
     "K": (_REQUIRED, Setting("kick strength, 0 < K < 4 (Eq. cpem)", float, _real)),
-    "b1": (_REQUIRED, Setting("left strip width, b1 > 0 (Eq. fx)", float, _real)),
-    "b2": (_REQUIRED, Setting("right strip width, b2 > 0, b1 + b2 < 1 (Eq. fx)", float, _real)),
+    "b1": (
+        None,
+        Setting("left strip width, b1 > 0 (Eq. fx; or --knots, --values)", float, _real, optional=True),
+    ),
+    "b2": (
+        None,
+        Setting(
+            "right strip width, b2 > 0, b1 + b2 < 1 (Eq. fx; or --knots, --values)",
+            float,
+            _real,
+            optional=True,
+        ),
+    ),
+    "knots": (
+        None,
+        Setting(
+            "another piecewise-linear force instead of b1, b2: its knots 0 = x_0 < ... < x_{n-1} < 1, "
+            "comma-separated (with --values)",
+            str,
+            _numbers,
+            optional=True,
+        ),
+    ),
+    "values": (
+        None,
+        Setting(
+            "the force at --knots, comma-separated; linear in between, f(1) = f(0), mean 0",
+            str,
+            _numbers,
+            optional=True,
+        ),
+    ),
     "init": (
         "strip",
         Setting("initial conditions: the strip B of Eq. (B), the torus, or a grid", str, choices=SAMPLERS),
@@ -329,6 +365,10 @@ class RunSpec(_Spec):
     chunk_steps : int or None
         Steps between observer calls, ``1..MAX_CHUNK_STEPS``; ``None``: about 2.5e8
         point-steps. Results do not depend on it.
+    knots, values : str or None
+        Another force instead of ``b1, b2`` (:meth:`warpratchet.force.Force.from_knots`): its
+        knots ``0 = x_0 < ... < x_{n-1} < 1`` and values, comma-separated exact numbers, stored
+        as their exact text; the mean must be exactly zero and ``max |K f| < 2``.
 
     Examples
     --------
@@ -338,8 +378,8 @@ class RunSpec(_Spec):
     """
 
     K: float = _field("K")
-    b1: float = _field("b1")
-    b2: float = _field("b2")
+    b1: float | None = _field("b1")
+    b2: float | None = _field("b2")
     init: str = _field("init")
     points: int = _field("points")
     seed: int = _field("seed")
@@ -350,17 +390,43 @@ class RunSpec(_Spec):
     threads: int | None = _field("threads")
     device: str = _field("device")
     chunk_steps: int | None = _field("chunk_steps")
+    knots: str | None = _field("knots")
+    values: str | None = _field("values")
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        # The map's ranges are MapParams' (one definition); a run also needs the kernels to carry
-        # its arithmetic (tiny b1, b2 overflow the tangent: limits.check_kernel_range).
-        check_kernel_range(MapParams(self.K, self.b1, self.b2))
+        # The map's ranges are MapParams' and Force's (one definition); a run also needs the
+        # kernels to carry its arithmetic (limits.check_kernel_range).
+        check_kernel_range(self.params)
 
     @property
     def params(self) -> MapParams:
-        """The map of this run."""
-        return MapParams(self.K, self.b1, self.b2)
+        """The map of this run: the paper's ``b1, b2`` or the force of ``knots, values``."""
+        return params_of(self.K, self.b1, self.b2, self.knots, self.values)
+
+
+def params_of(K, b1=None, b2=None, knots=None, values=None) -> MapParams:
+    """The map of ``K`` with the paper's ``b1, b2`` or another force's ``knots, values``.
+
+    Raises
+    ------
+    ParameterError
+        If neither pair, both, or half of one is given, or if a value is outside its range.
+    """
+    paper, table = (b1, b2) != (None, None), (knots, values) != (None, None)
+    if paper and table:
+        raise ParameterError("b1, b2 and knots, values give two forces; give one pair")
+    if table:
+        if knots is None or values is None:
+            raise ParameterError(
+                f"{'values' if values is None else 'knots'} is missing: knots and values go together"
+            )
+        return MapParams(K, table=Force.from_knots(knots, values))
+    if b1 is None or b2 is None:
+        raise ParameterError(
+            f"{'b1' if b1 is None else 'b2'} is missing: give b1 and b2 (or knots and values)"
+        )
+    return MapParams(K, b1, b2)
 
 
 @dataclass(frozen=True)

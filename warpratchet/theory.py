@@ -47,6 +47,13 @@ Domain = Literal["LR", "L", "R", "none"]
 LIMIT_MAXIMAL_PATH = 0.25
 
 
+#: Why a force other than Eq. (fx) has no closed form here.
+NO_CLOSED_FORM = (
+    "the closed forms (islands, areas, A) are derived for the force of Eq. (fx) (Sec. IV, Appendices "
+    "B-E); for another force, measure A (run) and the island census (sumrule)"
+)
+
+
 def _require_K3(p: MapParams, what: str) -> None:
     if p.K != 3.0:
         raise ValueError(
@@ -229,7 +236,18 @@ def summary(p: MapParams) -> dict[str, object]:
     """Everything the theory says at ``p``: the keys of ``warpratchet theory --json``.
 
     ``S_L, S_R, S_C, A`` are ``None`` where not defined (``K != 3``; ``S_C`` in domain "none").
+    Another force than Eq. (fx) has none of them: :data:`NO_CLOSED_FORM` says why.
     """
+    if not p.is_paper:
+        return {
+            **p.as_dict(),
+            "domain": None,
+            "S_L": None,
+            "S_R": None,
+            "S_C": None,
+            "A": None,
+            "why": NO_CLOSED_FORM,
+        }
     out: dict[str, object] = dict(p.as_dict())
     out["domain"] = domain(p)
     if p.K == 3.0:

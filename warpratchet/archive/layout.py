@@ -66,6 +66,8 @@ RUN_SETTINGS = (
     "threshold_rule",
     "threads",
     "device",
+    "knots",
+    "values",
 )
 #: The archive's own settings besides ``chunk_steps`` (a RunSpec setting) and the kernel's.
 ARCHIVE_SETTINGS = ("chunk_steps", "checkpoint_every", "snapshot_every", "snapshot_points")

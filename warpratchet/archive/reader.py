@@ -24,8 +24,7 @@ from .._files import open_h5
 from .._h5verify import first_line
 from ..ensemble import Ensemble
 from ..history import History
-from ..params import MapParams
-from ..spec import SAMPLERS, RunSpec, attr_value
+from ..spec import SAMPLERS, RunSpec, attr_value, params_of
 from . import progress
 from . import transport as _transport
 from .checks import read_counter, reading, valid_rows
@@ -100,7 +99,7 @@ class Archive:
             features = str(attr_value(f.attrs.get("features", b"")))
             self.features = tuple(name for name in features.split(",") if name)
             p = {k: attr_value(v) for k, v in f["params"].attrs.items()}
-            self.params = MapParams(p["K"], p["b1"], p["b2"])
+            self.params = params_of(p["K"], p.get("b1"), p.get("b2"), p.get("knots"), p.get("values"))
             self.settings = read_settings(f["settings"].attrs, self.format_version)
             self.versions = {k: str(attr_value(v)) for k, v in f["versions"].attrs.items()}
             self.initial_step = int(attr_value(f["initial"].attrs["step"]))
@@ -316,7 +315,8 @@ class Archive:
 
     def __repr__(self) -> str:
         p = self.params
-        return f"Archive({self.path!r}, K={p.K!r}, b1={p.b1!r}, b2={p.b2!r}, points={self.points})"
+        force = f"b1={p.b1!r}, b2={p.b2!r}" if p.is_paper else f"table={p.table!r}"
+        return f"Archive({self.path!r}, K={p.K!r}, {force}, points={self.points})"
 
 
 def _last_row(series: dict[str, np.ndarray]) -> dict[str, float | int] | None:

@@ -134,6 +134,18 @@ def build_parser() -> Parser:
     return parser
 
 
+def _joined_lists(argv: list[str]) -> list[str]:
+    """``--values -0.2,0.3`` as ``--values=-0.2,0.3``: argparse takes a list that starts with a
+    minus sign for an option."""
+    out = []
+    for item in argv:
+        if out and out[-1] in ("--knots", "--values") and item.startswith("-") and item[1:2].isdigit():
+            out[-1] = f"{out[-1]}={item}"
+        else:
+            out.append(item)
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (2 for bad input, 130 on Ctrl-C)."""
     from .._files import StorageError
@@ -145,7 +157,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             return figures.main(argv[1:])
         parser = build_parser()
         try:
-            args = parser.parse_args(argv)
+            args = parser.parse_args(_joined_lists(argv))
         except SystemExit as exc:  # --help, --version (0); parse errors raise UsageError instead
             return exc.code if isinstance(exc.code, int) else 0
         return SUBCOMMANDS[args.command].command(args)

@@ -45,10 +45,13 @@ def command(args: argparse.Namespace) -> int:
         return 0
     p, s, v, last = info["params"], info["settings"], info["versions"], info["latest"]
     print(f"{info['path']}: {info['format']} v{info['format_version']}, created {info['created']}")
-    print(
-        f"  K = {p['K']}, b1 = {p['b1']}, b2 = {p['b2']}  (l1 = {p['l1']:.6g}, l2 = {p['l2']:.6g}, "
-        f"c = {p['c']:.6g})"
-    )
+    if "knots" in p:
+        print(f"  K = {p['K']}, knots = {p['knots']}, values = {p['values']}")
+    else:
+        print(
+            f"  K = {p['K']}, b1 = {p['b1']}, b2 = {p['b2']}  (l1 = {p['l1']:.6g}, l2 = {p['l2']:.6g}, "
+            f"c = {p['c']:.6g})"
+        )
     snaps = (
         f"snapshots of {s['snapshot_points']} points every {s['snapshot_every']} steps"
         if s["snapshot_every"]

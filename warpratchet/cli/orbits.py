@@ -27,7 +27,7 @@ def add(sub) -> None:
     p = sub.add_parser(
         "orbits", help="every periodic orbit of exact period M with its residue and kind, and the families"
     )
-    spec_flags(p, ("K", "b1", "b2"))
+    spec_flags(p, ("K", "b1", "b2", "knots", "values"))
     p.add_argument("--period", type=count_type("period", 1), required=True, help="exact period m (>= 1)")
     p.add_argument(
         "--long",
@@ -74,9 +74,9 @@ def estimate_seconds(params, period: int) -> tuple[float, float]:
 
 def command(args: argparse.Namespace) -> int:
     from ..orbits import format_orbits, orbits_report
-    from ..params import MapParams
+    from ..spec import params_of
 
-    params = MapParams(args.K, args.b1, args.b2)
+    params = params_of(args.K, args.b1, args.b2, args.knots, args.values)
     if args.period > ALWAYS and not args.long:
         seconds, growth = estimate_seconds(params, args.period)
         if seconds > LONG_SECONDS:

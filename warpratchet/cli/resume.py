@@ -15,7 +15,7 @@ from .common import ProgressBar, UsageError, print_warnings, spec_flag, spec_fla
 from .run import history_report, print_report, run_report
 
 #: Settings that may be given to check them against the archive.
-CHECKED = ("K", "b1", "b2", "points", "seed", "init")
+CHECKED = ("K", "b1", "b2", "knots", "values", "points", "seed", "init")
 
 
 def add(sub) -> None:
@@ -54,9 +54,10 @@ def command(args: argparse.Namespace) -> int:
             start_step = arc.checkpoint_step
         for key in CHECKED:
             asked = getattr(args, key)
-            if asked is not None and asked != archived[key]:
+            stored = archived.get(key)
+            if asked is not None and asked != stored:
                 raise UsageError(
-                    f"--{key} {asked} disagrees with the archive's {key} = {archived[key]} in {args.archive}"
+                    f"--{key} {asked} disagrees with the archive's {key} = {stored} in {args.archive}"
                 )
         if args.steps <= start_step:
             raise UsageError(

@@ -16,6 +16,7 @@ import sys
 import time
 from typing import Any
 
+from ..params import map_text
 from ..spec import RunSpec
 from .common import Interrupted, ProgressBar, emit_json, print_warnings, spec_flags, spec_from_args
 from .sinks import add_archive_flags, add_rerun_flags, archive_plan, rerun_sink
@@ -80,8 +81,8 @@ def print_report(report: dict[str, Any], as_json: bool) -> None:
         return
     a_theory = report["A_theory"]
     print(
-        f"K = {report['K']}, b1 = {report['b1']}, b2 = {report['b2']}: "
-        f"{report['points']} points x {report['steps']} steps ({report['init']}, seed {report['seed']})"
+        f"{map_text(report)}: {report['points']} points x {report['steps']} steps "
+        f"({report['init']}, seed {report['seed']})"
     )
     print(
         f"  A           = {_number(report['A'], '.6g')} +- {_number(report['A_stderr'], '.2g')}"

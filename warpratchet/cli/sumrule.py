@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..params import map_text
 from .common import ProgressBar, count_type, emit_json, spec_flag, spec_flags
 
 DEFAULT_POINTS = 100_000
@@ -17,7 +18,7 @@ DEFAULT_POINTS = 100_000
 
 def add(sub) -> None:
     p = sub.add_parser("sumrule", help="island census of the torus and the sum rule, Eq. (sum), for any K")
-    spec_flags(p, ("K", "b1", "b2"))
+    spec_flags(p, ("K", "b1", "b2", "knots", "values"))
     where = p.add_mutually_exclusive_group()
     spec_flag(
         where, "points", default=None, help=f"random points uniform on the torus (default {DEFAULT_POINTS})"
@@ -48,7 +49,7 @@ def add(sub) -> None:
 def _print_census(result, out: dict) -> None:
     err = "+-" if result.error_kind == "stderr" else "bound"
     print(
-        f"K = {result.K}, b1 = {result.b1}, b2 = {result.b2}: {result.points} points ({result.sampling}) "
+        f"{map_text(vars(result))}: {result.points} points ({result.sampling}) "
         f"x {result.steps} steps, classifier {result.classifier}"
     )
     print(f"  {'nu':>8} {'w':>4} {'m':>3} {'area':>10}  {err:>9}  chaotic")
@@ -83,12 +84,12 @@ def _print_census(result, out: dict) -> None:
 
 
 def command(args: argparse.Namespace) -> int:
-    from ..params import MapParams
+    from ..spec import params_of
     from ..sumrule import census
 
     points = DEFAULT_POINTS if args.points is None and args.grid is None else args.points
     result = census(
-        MapParams(args.K, args.b1, args.b2),
+        params_of(args.K, args.b1, args.b2, args.knots, args.values),
         args.steps,
         points=points,
         grid=args.grid,

@@ -13,6 +13,7 @@ import math
 
 from ..errors import ParameterError, check_count
 from ..observables import MIN_CHAOTIC_POINTS
+from ..spec import params_of
 from .common import Interrupted, UsageError, emit_json, spec_flag, spec_flags, spec_from_args
 
 #: What each kind of sweep reads besides --K: the flags it needs (any other is an error).
@@ -48,6 +49,8 @@ def add(sub) -> None:
         help="b2 range (a single value for --path k); ranges include both ends",
     )
     p.add_argument("--a", type=float, default=None, help="slope of --path line: b1 = b2 / a")
+    spec_flag(p, "knots", help="with --path k: another force's knots, instead of --b1, --b2")
+    spec_flag(p, "values", help="with --path k and --knots: the force's values")
     p.add_argument(
         "--domain",
         metavar="NAMES",
@@ -132,8 +135,10 @@ def _sweep_points(args: argparse.Namespace) -> list:
 
     kind = "grid" if args.grid is not None else args.path
     needs = _SWEEP_NEEDS[kind]
+    if kind == "k" and args.knots is not None:
+        needs = ("Ks", "knots", "values")
     what = "--grid" if kind == "grid" else f"--path {kind}"
-    for name in ("Ks", "b1", "b2", "a", "domain", "K"):
+    for name in ("Ks", "b1", "b2", "a", "domain", "K", "knots", "values"):
         given = getattr(args, name) is not None
         used = name in needs or (name == "domain" and kind == "grid") or (name == "K" and kind != "k")
         if name in needs and not given:
@@ -147,6 +152,9 @@ def _sweep_points(args: argparse.Namespace) -> list:
         return sweep.line_path(args.a, _parse_range("--b2", args.b2), K=K)
     if kind == "fixed-b1":
         return sweep.fixed_b1_path(args.b1, _parse_range("--b2", args.b2), K)
+    if kind == "k" and args.knots is not None:
+        table = params_of(3.0, knots=args.knots, values=args.values).table
+        return sweep.k_path(_parse_range("--Ks", args.Ks), table=table)
     if kind == "k":
         return sweep.k_path(_parse_range("--Ks", args.Ks), args.b1, _parse_value("--b2", args.b2))
     axes = _parse_grid(args.grid)

@@ -30,17 +30,7 @@ from typing import Any
 import warp as wp
 
 from .runtime import CPU_MODULE, CPU_MODULE_OPTIONS, MODULE_OPTIONS, PORTABLE_MODULE
-from .step import (
-    CPU,
-    INTERLEAVE,
-    PORTABLE,
-    RENORM_CHECK_EVERY,
-    Body,
-    Coefficients,
-    State,
-    _renorm_point,
-    _step_point,
-)
+from .step import CPU, INTERLEAVE, PORTABLE, RENORM_CHECK_EVERY, Body, Coefficients, State, force_bodies
 
 __all__ = ["MAX_LAUNCH_STEPS", "Variant", "AdvanceKernel", "advance_kernel", "launch_dim"]
 
@@ -90,7 +80,7 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
     check_shift = wp.int64(RENORM_CHECK_EVERY.bit_length() - 1)
     after_step, after_check, store = variant.after_step, variant.after_check, variant.store
     load = variant.load
-    if body is CPU:
+    if body.name == CPU.name:
         after_step = variant.cpu_after_step or after_step
         after_check = variant.cpu_after_check or after_check
         load = variant.cpu_load or load
@@ -117,8 +107,9 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
     return wp.kernel(advance, name=f"advance_{variant.name}", module=module)
 
 
-def _build_point(module: str, options: dict) -> wp.Kernel:
-    """The plain map with one point per thread (thread ``i`` advances point ``i``)."""
+def _build_point(body: Body, module: str, options: dict) -> wp.Kernel:
+    """The plain map with one point per thread (thread ``i`` advances point ``i``), from the
+    portable ``body``'s one-point step and check."""
     check_mask = wp.int64(RENORM_CHECK_EVERY - 1)
 
     def advance_point(state: State, step0: wp.int64, steps: int, p: Coefficients):
@@ -131,10 +122,10 @@ def _build_point(module: str, options: dict) -> wp.Kernel:
         w = wp.float64(0.0)
         global_step = step0
         for _s in range(steps):
-            x, q, w, dx, dp, gain, in_strip = _step_point(x, q, w, dx, dp, p)
+            x, q, w, dx, dp, gain, in_strip = wp.static(body.point_step)(x, q, w, dx, dp, p)
             global_step = global_step + wp.int64(1)
             if (global_step & wp.static(check_mask)) == wp.int64(0):
-                dx, dp, log_stretch = _renorm_point(dx, dp, log_stretch)
+                dx, dp, log_stretch = wp.static(body.point_renorm)(dx, dp, log_stretch)
         state.x[i] = x
         state.q[i] = q
         state.dx[i] = dx
@@ -153,11 +144,32 @@ class AdvanceKernel:
     off the CPU.
     """
 
-    def __init__(self, variant: Variant, module_suffix: str = "", one_point: bool = False) -> None:
+    def __init__(
+        self,
+        variant: Variant,
+        module_suffix: str = "",
+        bodies: tuple[Body, Body] = (CPU, PORTABLE),
+        one_point: bool = False,
+    ) -> None:
         self.variant = variant
-        self.cpu = _build(variant, CPU, CPU_MODULE + module_suffix, CPU_MODULE_OPTIONS)
-        self.portable = _build(variant, PORTABLE, PORTABLE_MODULE + module_suffix, MODULE_OPTIONS)
-        self.point = _build_point(PORTABLE_MODULE + module_suffix, MODULE_OPTIONS) if one_point else None
+        self.module_suffix = module_suffix
+        self.one_point = one_point
+        self.cpu = _build(variant, bodies[0], CPU_MODULE + module_suffix, CPU_MODULE_OPTIONS)
+        self.portable = _build(variant, bodies[1], PORTABLE_MODULE + module_suffix, MODULE_OPTIONS)
+        self.point = (
+            _build_point(bodies[1], PORTABLE_MODULE + module_suffix, MODULE_OPTIONS) if one_point else None
+        )
+        self._forces: dict[str, AdvanceKernel] = {}
+
+    def for_force(self, table: Any) -> "AdvanceKernel":
+        """This variant on the bodies of a force's piece table (:mod:`warpratchet.force`): itself
+        for the paper's family, else kernels in modules of the force's own (built on first use)."""
+        if table.family == "paper":
+            return self
+        if table.key not in self._forces:
+            suffix = f"{self.module_suffix}.force_{table.key}"
+            self._forces[table.key] = type(self)(self.variant, suffix, force_bodies(table), self.one_point)
+        return self._forces[table.key]
 
     def _body(self, device: str, body: str | None) -> str:
         on_cpu = wp.get_device(device).is_cpu
@@ -169,17 +181,20 @@ class AdvanceKernel:
             raise ValueError(f"the {self.variant.name} variant has no one-point kernel")
         return body
 
-    def kernel(self, device: str, body: str | None = None) -> wp.Kernel:
+    def kernel(self, device: str, body: str | None = None, table: Any = None) -> wp.Kernel:
         """The Warp kernel for ``device``: the CPU body on the CPU; elsewhere the one-point kernel
         where the variant has one, else the portable body.
 
-        ``body="portable"`` or ``"point"`` forces that kernel (tests compare them on the CPU).
+        ``body="portable"`` or ``"point"`` forces that kernel (tests compare them on the CPU);
+        ``table``, a force's piece table (default: the paper's family).
         """
+        if table is not None:
+            return self.for_force(table).kernel(device, body)
         return {"cpu": self.cpu, "portable": self.portable, "point": self.point}[self._body(device, body)]
 
-    def load(self, device: str, body: str | None = None) -> None:
+    def load(self, device: str, body: str | None = None, table: Any = None) -> None:
         """Compile (or load from Warp's kernel cache) the module that :meth:`launch` will use."""
-        wp.load_module(self.kernel(device, body).module, device=device)
+        wp.load_module(self.kernel(device, body, table).module, device=device)
 
     def launch(
         self,
@@ -208,7 +223,10 @@ class AdvanceKernel:
             arguments = [_fill(State(), state), _fill(self.variant.arrays(), extra), step0, steps]
             dim = launch_dim(state[0].shape[0])
         wp.launch(
-            self.kernel(device, body), dim=dim, inputs=[*arguments, coefficients(params)], device=device
+            self.kernel(device, body, params.table),
+            dim=dim,
+            inputs=[*arguments, coefficients(params)],
+            device=device,
         )
 
 
@@ -222,9 +240,12 @@ def _fill(struct: Any, arrays: Sequence[wp.array]) -> Any:
 
 
 def coefficients(params: Any) -> Coefficients:
-    """The kernel's view of the map (Eqs. fx, mmc) from a ``MapParams``."""
+    """The kernel's view of the map (Eqs. fx, mmc) from a ``MapParams``: ``K`` and the paper's
+    run-time coefficients by their fields (another force's are constants of its code)."""
     c = Coefficients()
-    c.K, c.b1, c.right, c.l1, c.l2, c.c = params.K, params.b1, 1.0 - params.b2, params.l1, params.l2, params.c
+    c.K = params.K
+    for field, value in params.table.fields().items():
+        setattr(c, field, value)
     return c
 
 
@@ -234,4 +255,4 @@ def advance_kernel(variant: Variant, module_suffix: str = "", one_point: bool = 
     The package's kernels share two Warp modules (one compilation each); ``module_suffix`` puts a
     variant in modules of its own (e.g. ``".transport"``), compiled only when it is used.
     """
-    return AdvanceKernel(variant, module_suffix, one_point)
+    return AdvanceKernel(variant, module_suffix, one_point=one_point)

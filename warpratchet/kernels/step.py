@@ -3,7 +3,9 @@
 Arithmetic (``warpratchet.reference`` repeats it operation by operation in NumPy, which is what
 makes the two bitwise equal):
 
-* force, Eq. (fx): ``f = l1*x`` if ``x <= b1``; ``c - x`` if ``x < 1 - b2``; ``l2*(x - 1)``;
+* force: ``f`` and ``K f'`` piece by piece, code generated from the force's piece table
+  (:mod:`warpratchet.force`; Eq. fx for the paper's family, whose coefficients the kernels read
+  from :class:`Coefficients` at run time, while another force's are constants of its own code);
 * momentum kept as whole units ``w`` plus a fraction ``q`` in ``[0, 1)``: ``t = q + K*f``,
   ``w += floor(t)``, ``q = t - floor(t)``, and a ``q`` that rounds up to exactly 1 (``t`` just
   below an integer) is folded to 0 with ``w += 1``. A float64 momentum that grew to 10^4 would
@@ -18,8 +20,8 @@ A Warp thread advances :data:`INTERLEAVE` independent points, its *lanes*, held 
 :class:`Lanes` struct of lane vectors. Besides the state, each step leaves two facts per lane
 that kernel variants may use (an unused fact costs nothing: the compiler drops it):
 ``gain``, the whole units of momentum the step added (``floor(t)``, plus 1 on a fold), and
-``in_strip``, 1 where the new ``x`` lies in the strip B of Eq. (B) (``x <= b1`` or
-``x >= 1 - b2``), else 0.
+``in_strip``, 1 where the new ``x`` lies in the force's strip (the pieces with ``f' > 0``: the
+strip B of Eq. (B) for the paper's family), else 0.
 
 Two bodies, one arithmetic:
 
@@ -34,9 +36,12 @@ Two bodies, one arithmetic:
 ``tests/test_kernels.py`` checks that both give bitwise the same states on the CPU.
 """
 
+import linecache
 from typing import Any, NamedTuple
 
 import warp as wp
+
+from ..force import Force, cpp_source, warp_source
 
 __all__ = [
     "INTERLEAVE",
@@ -49,6 +54,7 @@ __all__ = [
     "Body",
     "CPU",
     "PORTABLE",
+    "force_bodies",
     "load_lanes",
     "load_lane_vector",
     "store_lane_vector",
@@ -182,43 +188,70 @@ def _strided(tid: int, n: int):
 
 
 # -- the portable body (plain Warp) -------------------------------------------------------------
-@wp.func
-def _step_point(x: wp.float64, q: wp.float64, w: wp.float64, dx: wp.float64, dp: wp.float64, p: Coefficients):
-    """One iteration for one point; returns ``x, q, w, dx, dp, gain, in_strip``."""
-    one = wp.float64(1.0)
-    zero = wp.float64(0.0)
-    in_left = x <= p.b1
-    in_middle = x < p.right
-    # Eq. (fx) and its slope; wp.where keeps the step branch free.
-    f = wp.where(in_left, p.l1 * x, wp.where(in_middle, p.c - x, p.l2 * (x - one)))
-    slope = wp.where(in_left, p.l1, wp.where(in_middle, -one, p.l2))
-    t = q + p.K * f
-    fl = wp.floor(t)
-    q = t - fl
-    # t just below an integer can round t - floor(t) up to exactly 1: fold it back.
-    wrap = q >= one
-    q = wp.where(wrap, zero, q)
-    lift = wp.where(wrap, one, zero)
-    w = w + fl + lift
-    x = x + q
-    x = wp.where(x >= one, x - one, x)
-    dp = dp + (p.K * slope) * dx
-    dx = dx + dp
-    in_strip = wp.where(x <= p.b1 or x >= p.right, one, zero)
-    return x, q, w, dx, dp, fl + lift, in_strip
+def _generated_func(source: str, name: str) -> wp.Function:
+    """A ``wp.func`` from generated Python source; Warp reads a function's source back, so the
+    source is registered with ``linecache`` under a name of its own."""
+    filename = f"<warpratchet force {name}>"
+    linecache.cache[filename] = (len(source), None, source.splitlines(True), filename)
+    namespace = {"wp": wp, "Coefficients": Coefficients}
+    exec(compile(source, filename, "exec"), namespace)
+    func = namespace[name]
+    func.__qualname__ = name
+    return wp.func(func)
 
 
-@wp.func
-def _step_portable(s: wp.ref[Lanes], p: Coefficients):
-    for k in range(wp.static(INTERLEAVE)):
-        x, q, w, dx, dp, gain, in_strip = _step_point(s.x[k], s.q[k], s.w[k], s.dx[k], s.dp[k], p)
-        s.x[k] = x
-        s.q[k] = q
-        s.w[k] = w
-        s.dx[k] = dx
-        s.dp[k] = dp
-        s.gain[k] = gain
-        s.in_strip[k] = in_strip
+def _force_funcs(force: Force, tag: str) -> tuple[wp.Function, wp.Function]:
+    """The force and strip of ``force`` as ``wp.func``s (:func:`warpratchet.force.warp_source`)."""
+    name = f"_force_{tag}"
+    source = warp_source(force, name, "Coefficients")
+    return _generated_func(source, name), _generated_func(source, f"{name}_strip")
+
+
+def _portable_step(force: Force, tag: str) -> tuple[wp.Function, wp.Function]:
+    """The portable step of ``force``: ``_step_point`` over the lanes, and ``_step_point``."""
+    force_at, strip_at = _force_funcs(force, tag)
+
+    def step_point(
+        x: wp.float64, q: wp.float64, w: wp.float64, dx: wp.float64, dp: wp.float64, p: Coefficients
+    ):
+        """One iteration for one point; returns ``x, q, w, dx, dp, gain, in_strip``."""
+        one = wp.float64(1.0)
+        zero = wp.float64(0.0)
+        # Eq. (fx) and its slope, generated from the piece table; wp.where keeps the step branch free.
+        f, slope = wp.static(force_at)(x, p)
+        t = q + p.K * f
+        fl = wp.floor(t)
+        q = t - fl
+        # t just below an integer can round t - floor(t) up to exactly 1: fold it back.
+        wrap = q >= one
+        q = wp.where(wrap, zero, q)
+        lift = wp.where(wrap, one, zero)
+        w = w + fl + lift
+        x = x + q
+        x = wp.where(x >= one, x - one, x)
+        dp = dp + (p.K * slope) * dx
+        dx = dx + dp
+        in_strip = wp.static(strip_at)(x, p)
+        return x, q, w, dx, dp, fl + lift, in_strip
+
+    step_point.__qualname__ = f"_step_point_{tag}"
+    step_point = wp.func(step_point)
+
+    def step_portable(s: wp.ref[Lanes], p: Coefficients):
+        for k in range(wp.static(INTERLEAVE)):
+            x, q, w, dx, dp, gain, in_strip = wp.static(step_point)(
+                s.x[k], s.q[k], s.w[k], s.dx[k], s.dp[k], p
+            )
+            s.x[k] = x
+            s.q[k] = q
+            s.w[k] = w
+            s.dx[k] = dx
+            s.dp[k] = dp
+            s.gain[k] = gain
+            s.in_strip[k] = in_strip
+
+    step_portable.__qualname__ = f"_step_portable_{tag}"
+    return wp.func(step_portable), step_point
 
 
 @wp.func
@@ -250,7 +283,7 @@ VECTOR_TYPES = f"""
 typedef double v_t __attribute__((ext_vector_type({INTERLEAVE})));
 """
 
-_STEP_CPU = (
+_STEP_CPU_TEMPLATE = (
     VECTOR_TYPES
     + """
 v_t x, q, w, dx, dp;
@@ -260,18 +293,7 @@ __builtin_memcpy(&w, &s.w, sizeof(v_t));
 __builtin_memcpy(&dx, &s.dx, sizeof(v_t));
 __builtin_memcpy(&dp, &s.dp, sizeof(v_t));
 const v_t one = 1.0, zero = 0.0;
-const auto in_left = x <= p.b1;
-const auto in_middle = x < p.right;
-const v_t f_left = p.l1 * x;
-const v_t f_middle = p.c - x;
-const v_t x_minus_one = x - one;
-const v_t f_right = p.l2 * x_minus_one;
-const v_t f = in_left ? f_left : (in_middle ? f_middle : f_right);
-/* K*slope per piece: K*l1, K*(-1), K*l2 are the roundings of the scalar K*slope. */
-const v_t k_left = p.K * p.l1, k_middle = -p.K, k_right = p.K * p.l2;
-const v_t k_slope = in_left ? k_left : (in_middle ? k_middle : k_right);
-const v_t kick = p.K * f;
-const v_t t = q + kick;
+@FORCE@const v_t t = q + kick;
 const v_t fl = __builtin_elementwise_floor(t);
 q = t - fl;
 const auto wrap = q >= one;
@@ -286,8 +308,7 @@ const v_t k_slope_dx = k_slope * dx;
 dp = dp + k_slope_dx;
 dx = dx + dp;
 const v_t gain = fl + lift;
-const v_t in_strip = ((x <= p.b1) | (x >= p.right)) ? one : zero;
-__builtin_memcpy(&s.x, &x, sizeof(v_t));
+@STRIP@__builtin_memcpy(&s.x, &x, sizeof(v_t));
 __builtin_memcpy(&s.q, &q, sizeof(v_t));
 __builtin_memcpy(&s.w, &w, sizeof(v_t));
 __builtin_memcpy(&s.dx, &dx, sizeof(v_t));
@@ -350,8 +371,16 @@ if (__builtin_reduce_or(big) != 0) {{
 )
 
 
-@wp.func_native(_STEP_CPU)
-def _step_cpu(s: wp.ref[Lanes], p: Coefficients): ...
+def _cpu_step(force: Force, tag: str) -> wp.Function:
+    """The CPU step of ``force``: the template with the force's generated C++
+    (:func:`warpratchet.force.cpp_source`)."""
+    force_code, strip_code = cpp_source(force)
+    snippet = _STEP_CPU_TEMPLATE.replace("@FORCE@", force_code).replace("@STRIP@", strip_code)
+
+    def step_cpu(s: wp.ref[Lanes], p: Coefficients): ...
+
+    step_cpu.__qualname__ = f"_step_cpu_{tag}"
+    return wp.func_native(snippet)(step_cpu)
 
 
 @wp.func_native(_RENORM_CPU)
@@ -367,7 +396,32 @@ class Body(NamedTuple):
     store: wp.Function  # (State, Lanes, first, spacing, n)
     step: wp.Function  # (ref Lanes, Coefficients): one iteration, facts included
     renorm: wp.Function  # (ref Lanes): the renormalisation check
+    #: One point's step and check (x, q, w, dx, dp, Coefficients) -> (x, q, w, dx, dp, gain,
+    #: in_strip) and (dx, dp, log_stretch) -> (dx, dp, log_stretch); the portable body only.
+    point_step: wp.Function | None = None
+    point_renorm: wp.Function | None = None
 
 
-PORTABLE = Body("portable", _strided, _load, _store, _step_portable, _renorm_portable)
-CPU = Body("cpu", _blocks, _load, _store, _step_cpu, _renorm_cpu)
+def _portable_body(force: Force, tag: str) -> Body:
+    step, point = _portable_step(force, tag)
+    return Body("portable", _strided, _load, _store, step, _renorm_portable, point, _renorm_point)
+
+
+def force_bodies(force: Force) -> tuple[Body, Body]:
+    """``(cpu, portable)`` step bodies of ``force``, made from its piece table.
+
+    The paper's family reads its coefficients from :class:`Coefficients` at run time (one pair
+    of bodies for every ``b1, b2``); any other force's table is constants of its own code.
+    """
+    tag = "paper" if force.family == "paper" else force.key
+    if tag not in _BODIES:
+        _BODIES[tag] = (
+            Body("cpu", _blocks, _load, _store, _cpu_step(force, tag), _renorm_cpu),
+            _portable_body(force, tag),
+        )
+    return _BODIES[tag]
+
+
+_BODIES: dict[str, tuple[Body, Body]] = {}
+#: The paper's family (Eq. fx): the bodies of every kernel built at import.
+CPU, PORTABLE = force_bodies(Force.paper(0.5, 0.25))

@@ -1,18 +1,20 @@
 """Exact arithmetic of the torus map: itineraries, fixed points of ``M^m`` and their residues.
 
-The map is the paper's: Eqs. (cpem) and (fx) with the coefficients of Eq. (mmc) computed in
-exact rational arithmetic from the float64 values of ``K, b1, b2``. The force is then exactly
-continuous and of zero mean (the kernels use ``l1, l2, c`` rounded to float64: a few ulps off,
-and continuous only to an ulp). Continuity matters: at K = 3 periodic orbits run through the
+The map is Eq. (cpem) with the force's exact piece table (:mod:`warpratchet.force`): for the
+paper's family, Eq. (fx) with the coefficients of Eq. (mmc) computed in exact rational
+arithmetic from the float64 values of ``K, b1, b2``. The force is then exactly continuous and
+of zero mean (the kernels use ``l1, l2, c`` rounded to float64: a few ulps off, and continuous
+only to an ulp). Continuity matters: at K = 3 periodic orbits run through the
 kinks ``x = b1`` and ``x = 1 - b2`` (corners of the chaotic region C of Eq. Cs), and with an
 ulp-sized jump there a kink orbit can vanish or split in two; here it is in exactly one cell.
 
-On piece ``s`` the kick is ``K f = ka x + kd`` (:func:`paper_kicks`) with rationals over a
-common denominator ``L_s``. A point ``(x, q) = (X, Q) / D`` with integers ``X, Q, D`` steps to
-``(X', Q') / (L_s D)`` with integer arithmetic only, so the map is iterated *exactly*,
-half-open cells included (``x <= b1`` left, ``x < 1 - b2`` middle, ``k = floor(t)``,
-``j = [x + q' >= 1]``). This decides, without any tolerance, whether a candidate itinerary has
-a periodic point and which cell a point on a boundary belongs to: each orbit is found once.
+On piece ``s`` the kick is ``K f = ka x + kd`` (:meth:`~warpratchet.force.Force.exact_kicks`)
+with rationals over a common denominator ``L_s``. A point ``(x, q) = (X, Q) / D`` with integers
+``X, Q, D`` steps to ``(X', Q') / (L_s D)`` with integer arithmetic only, so the map is iterated
+*exactly*, half-open cells included (the kernels' rule at each knot, for Eq. fx ``x <= b1``
+left and ``x < 1 - b2`` middle; ``k = floor(t)``, ``j = [x + q' >= 1]``). This decides,
+without any tolerance, whether a candidate itinerary has a periodic point and which cell a
+point on a boundary belongs to: each orbit is found once.
 
 An itinerary of ``m`` symbols composes to ``z -> A z + b`` with ``A = DM^m``; its fixed point
 solves ``(A - I) z = -b``, and ``det(A - I) = 2 - tr A = 4 R`` (``det A = 1``): the
@@ -30,7 +32,7 @@ from typing import NamedTuple
 
 from ..params import MapParams
 
-__all__ = ["ExactMap", "Composite", "paper_kicks", "as_fractions", "from_fractions"]
+__all__ = ["ExactMap", "Composite", "as_fractions", "from_fractions"]
 
 
 class Composite(NamedTuple):
@@ -88,44 +90,33 @@ def from_fractions(z: tuple[Fraction, Fraction]) -> tuple[int, int, int]:
     return x.numerator * q.denominator, q.numerator * x.denominator, x.denominator * q.denominator
 
 
-def paper_kicks(params: MapParams) -> tuple[tuple[Fraction, Fraction], ...]:
-    """``(K a_s, K d_s)`` per piece, ``K f = K a_s x + K d_s``, exactly: Eq. (fx) with Eq. (mmc)
-    ``c = (1 - b2) / (2 - b)``, ``l1 = (1 - b1)(1 - b) / (b1 (2 - b))``,
-    ``l2 = (1 - b2)(1 - b) / (b2 (2 - b))``, ``b = b1 + b2``, at the float64 ``K, b1, b2``."""
-    K, b1, b2 = Fraction(params.K), Fraction(params.b1), Fraction(params.b2)
-    b = b1 + b2
-    c = (1 - b2) / (2 - b)
-    l1 = (1 - b1) * (1 - b) / (b1 * (2 - b))
-    l2 = (1 - b2) * (1 - b) / (b2 * (2 - b))
-    return ((K * l1, Fraction(0)), (-K, K * c), (K * l2, -K * l2))
-
-
 class ExactMap:
-    """The paper's torus map at ``params``, in exact integer arithmetic.
+    """The torus map at ``params``, in exact integer arithmetic.
 
-    ``b1``, ``right = 1 - b2`` (Fractions); per piece ``s``: ``L[s]``, the common denominator
-    of its kick, and the integers ``ka_L[s] = L[s] K a_s``, ``kd_L[s] = L[s] K d_s``;
+    ``edges``: the knots ``x_1 .. x_{n-1}`` (Fractions; ``b1``, ``1 - b2`` for Eq. fx) and
+    whether each belongs to the piece on its left; per piece ``s``: ``L[s]``, the common
+    denominator of its kick, and the integers ``ka_L[s] = L[s] K a_s``, ``kd_L[s] = L[s] K d_s``;
     ``ka_float[s]``, the slope ``K f'`` rounded to float64.
     """
 
     def __init__(self, params: MapParams) -> None:
         self.params = params
-        self.b1 = Fraction(params.b1)
-        self.right = 1 - Fraction(params.b2)
-        kicks = paper_kicks(params)
+        self.pieces = params.table.n_pieces
+        self.edges = params.table.exact_edges()
+        kicks = params.table.exact_kicks(params.K)
         self.ka_float = [float(ka) for ka, _ in kicks]
         self.L = [math.lcm(ka.denominator, kd.denominator) for ka, kd in kicks]
         self.ka_L = [int(ka * L) for (ka, _), L in zip(kicks, self.L, strict=True)]
         self.kd_L = [int(kd * L) for (_, kd), L in zip(kicks, self.L, strict=True)]
-        self._b1 = (self.b1.numerator, self.b1.denominator)
-        self._right = (self.right.numerator, self.right.denominator)
+        self._edges = [(edge.numerator, edge.denominator, closed) for edge, closed in self.edges]
 
     # -- iterating points -----------------------------------------------------------------------
     def piece(self, X: int, D: int) -> int:
-        """Piece of Eq. (fx) of ``x = X / D`` (``D > 0``): 0 left (``x <= b1``), 1 middle, 2 right."""
-        if X * self._b1[1] <= self._b1[0] * D:
-            return 0
-        return 1 if X * self._right[1] < self._right[0] * D else 2
+        """Piece of ``x = X / D`` (``D > 0``); Eq. (fx): 0 left (``x <= b1``), 1 middle, 2 right."""
+        for s, (num, den, closed) in enumerate(self._edges):
+            if X * den < num * D or (closed and X * den == num * D):
+                return s
+        return self.pieces - 1
 
     def step(self, X: int, Q: int, D: int) -> tuple[int, int, int, int]:
         """One exact step of ``(x, q) = (X, Q) / D`` (``D > 0``): ``(symbol, X', Q', L_s D)``."""

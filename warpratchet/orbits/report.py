@@ -7,14 +7,14 @@ from __future__ import annotations
 
 from collections import Counter
 
-from ..params import MapParams
+from ..params import MapParams, map_text
 from .enumerate import KINDS, SLOPE_ULPS, Enumeration, Family, Orbit, enumerate_orbits
 from .symbols import describe
 
 __all__ = ["orbits_report", "format_orbits", "orbit_json", "family_json"]
 
 
-def orbit_json(orbit: Orbit) -> dict:
+def orbit_json(orbit: Orbit, pieces: int = 3) -> dict:
     """One orbit as JSON: points, winding ``w``, ``nu = w/m`` (Eq. AIn), residue, kind, itinerary."""
     return {
         "x": orbit.x.tolist(),
@@ -24,14 +24,14 @@ def orbit_json(orbit: Orbit) -> dict:
         "residue": orbit.residue,
         "residue_tolerance": orbit.residue_tolerance,
         "kind": orbit.kind,
-        "itinerary": describe(orbit.itinerary),
+        "itinerary": describe(orbit.itinerary, pieces),
     }
 
 
-def family_json(family: Family) -> dict:
+def family_json(family: Family, pieces: int = 3) -> dict:
     """One family as JSON: itinerary, winding, ``nu``, shape, vertices ``[[x, p], ...]``, areas."""
     return {
-        "itinerary": describe(family.itinerary),
+        "itinerary": describe(family.itinerary, pieces),
         "winding": family.winding,
         "nu": family.nu,
         "residue": family.residue,
@@ -69,8 +69,8 @@ def orbits_report(params: MapParams, period: int, *, enumeration: Enumeration | 
     return {
         **params.as_dict(derived=False),
         "period": result.period,
-        "orbits": [orbit_json(orbit) for orbit in result.orbits],
-        "families": [family_json(family) for family in result.families],
+        "orbits": [orbit_json(orbit, params.table.n_pieces) for orbit in result.orbits],
+        "families": [family_json(family, params.table.n_pieces) for family in result.families],
         "counts": {**{kind: kinds.get(kind, 0) for kind in KINDS}, "families": len(result.families)},
         "slope_ulps": SLOPE_ULPS,
         "search": {"nodes": result.nodes, "candidates": result.candidates, "seconds": result.seconds},
@@ -109,7 +109,7 @@ def format_orbits(report: dict) -> str:
     """A text table of an :func:`orbits_report`: one line per orbit (its first point), then the families."""
     counts = report["counts"]
     title = (
-        f"period-{report['period']} orbits at K = {report['K']}, b1 = {report['b1']}, b2 = {report['b2']}: "
+        f"period-{report['period']} orbits at {map_text(report)}: "
         + ", ".join(f"{counts[kind]} {kind}" for kind in KINDS)
         + f", {counts['families']} families ({report['search']['seconds']:.2f} s)"
     )

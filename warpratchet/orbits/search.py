@@ -36,7 +36,8 @@ def search(em: ExactMap, period: int, on_leaf: LeafHandler) -> int:
 
     Returns the number of tree nodes visited (the cost).
     """
-    pieces = [(s, em.L[s], em.ka_L[s], em.kd_L[s], piece_constraints(s, em.b1, em.right)) for s in range(3)]
+    edges = [edge for edge, _ in em.edges]
+    pieces = [(s, em.L[s], em.ka_L[s], em.kd_L[s], piece_constraints(s, edges)) for s in range(em.pieces)]
     word: list[int] = []
     nodes = 0
 

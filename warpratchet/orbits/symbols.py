@@ -8,13 +8,14 @@ One step of the torus map (the kernels' arithmetic, see :mod:`warpratchet.kernel
 ``f`` is affine on each piece ``s`` of Eq. (fx), ``f = a_s x + d_s`` with ``(a, d) = (l1, 0)``
 (left, ``x <= b1``), ``(-1, c)`` (middle, ``b1 < x < 1 - b2``), ``(l2, -l2)`` (right,
 ``x >= 1 - b2``), so on the cell of the symbol ``(s, k, j)`` the step is the affine map
-(:func:`~warpratchet.orbits.exact.paper_kicks` gives ``K a_s``, ``K d_s``)
+(:meth:`~warpratchet.force.Force.exact_kicks` gives ``K a_s``, ``K d_s``)
 
     (x', q') = S_s (x, q) + (K d_s - k - j, K d_s - k),   S_s = [[1 + K a_s, 1], [K a_s, 1]],
 
 with ``S_s = DM`` (:meth:`warpratchet.params.MapParams.jacobian`, ``det S_s = 1``). Since
-``|K f| < 2`` (``max |f| < 1/2``, Sec. III C), ``t`` lies in ``(-2, 3)`` and ``k`` in
-``{-2, ..., 2}``: 30 symbols, coded as the integers ``10 s + 2 (k + 2) + j`` in ``[0, 30)``.
+``|K f| < 2`` (``max |f| < 1/2``, Sec. III C; for another force the kernels' bound
+:data:`warpratchet.limits.MAX_KICK`), ``t`` lies in ``(-2, 3)`` and ``k`` in ``{-2, ..., 2}``:
+``10 n`` symbols for ``n`` pieces (30 for Eq. fx), coded as the integers ``10 s + 2 (k + 2) + j``.
 The winding (momentum gain ``p_m - p_0``, Eq. am) of an itinerary is the sum of its ``k``.
 
 Pure: no Warp, no I/O.
@@ -59,12 +60,13 @@ def winding(word: Sequence[int]) -> int:
     return sum(decode(symbol)[1] for symbol in word)
 
 
-def describe(word: Sequence[int]) -> list[list]:
-    """An itinerary as JSON-friendly ``[piece name, k, j]`` triples."""
+def describe(word: Sequence[int], pieces: int = 3) -> list[list]:
+    """An itinerary as JSON-friendly ``[piece name, k, j]`` triples (:data:`PIECES` for a force
+    of three pieces, ``"piece s"`` for another)."""
     out = []
     for symbol in word:
         piece, k, j = decode(symbol)
-        out.append([PIECES[piece], k, j])
+        out.append([PIECES[piece] if pieces == 3 else f"piece {piece}", k, j])
     return out
 
 
@@ -73,16 +75,18 @@ def describe(word: Sequence[int]) -> list[list]:
 # matters there (strict or not changes no area); the half-open rules are applied exactly by
 # ExactMap.step. x >= 0 and x < 1 are not listed: the unit square, and the previous step's j,
 # imply them.
-def piece_constraints(piece: int, b1: Fraction, right: Fraction) -> tuple[tuple[int, int, int], ...]:
-    """Half-planes of piece ``s`` of Eq. (fx): left ``x <= b1``, middle ``b1 < x < right``,
-    right ``x >= right`` (``right = 1 - b2``)."""
-    left_edge = (b1.denominator, 0, -b1.numerator)  # x - b1 >= 0, times the denominator
-    right_edge = (right.denominator, 0, -right.numerator)
-    if piece == 0:
-        return (tuple(-v for v in left_edge),)
-    if piece == 1:
-        return (left_edge, tuple(-v for v in right_edge))
-    return (right_edge,)
+def piece_constraints(piece: int, edges: Sequence[Fraction]) -> tuple[tuple[int, int, int], ...]:
+    """Half-planes of piece ``s`` between the knots ``edges`` (``x_1 .. x_{n-1}``): ``x >= x_s``
+    and ``x <= x_{s+1}``; for Eq. (fx) left ``x <= b1``, middle ``b1 < x < right``, right
+    ``x >= right`` (``right = 1 - b2``)."""
+    out = []
+    if piece > 0:
+        edge = edges[piece - 1]
+        out.append((edge.denominator, 0, -edge.numerator))  # x - edge >= 0, times the denominator
+    if piece < len(edges):
+        edge = edges[piece]
+        out.append((-edge.denominator, 0, edge.numerator))
+    return tuple(out)
 
 
 def k_constraints(ka: int, kd: int, k: int, one: int) -> tuple[tuple, tuple]:

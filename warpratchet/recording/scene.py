@@ -203,10 +203,16 @@ def torus_positions(x: np.ndarray, p: np.ndarray) -> np.ndarray:
 def markdown_parameters(params: MapParams, extra: Mapping[str, object]) -> str:
     """The parameters document of a recording: a markdown table of the map, its theory and ``extra``."""
     summary = theory.summary(params)
+    if params.is_paper:
+        force = [
+            ("b1, b2 (strip widths, Eq. fx)", f"{params.b1!r}, {params.b2!r}"),
+            ("l1, l2, c (Eq. mmc)", f"{params.l1:.6g}, {params.l2:.6g}, {params.c:.6g}"),
+        ]
+    else:
+        force = [("force (knots; values)", "; ".join(params.table.as_strings().values()))]
     rows = [
         ("K (kick strength, Eq. cpem)", params.K),
-        ("b1, b2 (strip widths, Eq. fx)", f"{params.b1!r}, {params.b2!r}"),
-        ("l1, l2, c (Eq. mmc)", f"{params.l1:.6g}, {params.l2:.6g}, {params.c:.6g}"),
+        *force,
         ("alpha (Eq. eig)", f"{params.alpha:.6g} rad"),
         ("islands (Fig. 3 domain)", summary["domain"]),
         ("theory A (Eqs. Aa, Ab)", "n/a (K != 3)" if summary["A"] is None else f"{summary['A']:.6g}"),

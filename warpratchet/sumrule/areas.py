@@ -63,8 +63,8 @@ class Census:
     """
 
     K: float
-    b1: float
-    b2: float
+    b1: float | None  # None for another force than Eq. (fx): see knots, values
+    b2: float | None
     sampling: str
     points: int
     steps: int
@@ -91,6 +91,9 @@ class Census:
     #: At K = 3: fractions of points where the census and Eq. (Cs) disagree, else None.
     C_check: dict | None = None
     seconds: float = 0.0
+    #: Another force's knots and values (``MapParams.as_dict``), else None.
+    knots: str | None = None
+    values: str | None = None
 
     def island(self, nu: float) -> IslandClass | None:
         """The island class with mean velocity ``nu`` (exact rational match), if found."""
@@ -222,7 +225,7 @@ def _aggregate(params: MapParams, pc: PointClasses, seed: int | None, grid: int 
     torus_err = None if is_grid else float(pc.A.std(ddof=1) / math.sqrt(n))
 
     theory_values = c_check = None
-    if params.K == 3.0:
+    if params.K == 3.0 and params.is_paper:
         from ..regions import in_C
 
         theory_values = theory.summary(params)
@@ -262,4 +265,6 @@ def _aggregate(params: MapParams, pc: PointClasses, seed: int | None, grid: int 
         theory=theory_values,
         C_check=c_check,
         seconds=seconds,
+        knots=None if params.is_paper else params.as_dict()["knots"],
+        values=None if params.is_paper else params.as_dict()["values"],
     )

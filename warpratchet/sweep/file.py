@@ -5,7 +5,8 @@ Layout (format ``warpratchet-sweep``, version :data:`FORMAT_VERSION`; HDF5 1.10 
 
     attrs   format = "warpratchet-sweep", format_version = 2, warpratchet_version, features = "",
             spec = JSON of SweepSpec.as_dict()   (RunSpec's names: points, steps, init, seed, threshold)
-    parameters   float64 (n, 3): K, b1, b2 of every point, in sweep order
+            knots, values: only for a sweep of another force than Eq. (fx) (warpratchet.force)
+    parameters   float64 (n, 3): K, b1, b2 of every point, in sweep order (NaN b1, b2: that force)
     rows         compound (m,), resizable: one record per finished point, in completion order
                  (attributes column_units, column_long_names: one per column, ROW_DESCRIPTIONS)
     rows_valid   int64 (1,): how many records of ``rows`` are complete
@@ -73,7 +74,13 @@ def _describe(ds: h5py.Dataset, units: str, long_name: str) -> None:
     ds.attrs["long_name"] = np.bytes_(long_name.encode())
 
 
-def _create(f: h5py.File, params: np.ndarray, spec: SweepSpec, rows: list[dict[str, Any]]) -> None:
+def _create(
+    f: h5py.File,
+    params: np.ndarray,
+    spec: SweepSpec,
+    rows: list[dict[str, Any]],
+    table: dict[str, str] | None,
+) -> None:
     """The whole layout in a new file, with ``rows`` already valid (SWMR allows no new objects later)."""
     for key, value in {
         "format": FORMAT,
@@ -81,6 +88,7 @@ def _create(f: h5py.File, params: np.ndarray, spec: SweepSpec, rows: list[dict[s
         "warpratchet_version": _version(),
         "spec": spec.to_json(),
         "features": "",
+        **(table or {}),
     }.items():
         # Fixed-length strings live in the checksummed object header (variable-length ones do not).
         f.attrs[key] = np.bytes_(value.encode()) if isinstance(value, str) else value
@@ -125,11 +133,21 @@ class SweepFile:
         The ensemble run at every point.
     force : bool
         Replace a file that holds anything else (refused while another process uses it).
+    table : dict, optional
+        ``knots`` and ``values`` of another force than Eq. (fx), the sweep's one force (its
+        ``b1, b2`` columns are NaN), stored as file attributes.
     """
 
-    def __init__(self, path: str | os.PathLike, params: np.ndarray, spec: SweepSpec, force: bool) -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        params: np.ndarray,
+        spec: SweepSpec,
+        force: bool,
+        table: dict[str, str] | None = None,
+    ) -> None:
         self.path = os.fspath(path)
-        self.params, self.spec = params, spec
+        self.params, self.spec, self.table = params, spec, table
         self.file: h5py.File | None = None
         self._lock_fd: int | None = None
         self._rows: list[dict[str, Any]] = []
@@ -164,7 +182,7 @@ class SweepFile:
                     f"{self.path} has sweep format version {version!r}, this warpratchet reads "
                     f"{', '.join(map(str, READABLE_VERSIONS))}; {replace}"
                 )
-            why = definition_mismatch(f, self.params, self.spec)
+            why = definition_mismatch(f, self.params, self.spec, self.table)
             if why is not None:
                 raise FileFormatError(f"{self.path} holds a different sweep ({why}); {replace}")
             return valid_rows(f, self.path)
@@ -178,7 +196,7 @@ class SweepFile:
             with temporary_beside(self.path) as tmp:
                 f = h5py.File(tmp, "w", libver=LIBVER, locking=False)
                 try:
-                    _create(f, self.params, self.spec, self._rows)
+                    _create(f, self.params, self.spec, self._rows, self.table)
                     f.swmr_mode = True
                     sync_h5(f)  # durable before it gets its name
                     fd = os.open(tmp, os.O_RDONLY)

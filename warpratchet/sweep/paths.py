@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import theory
 from ..errors import ParameterError, check_real
+from ..force import Force
 from ..limits import check_memory
 from ..params import MapParams
 
@@ -120,6 +121,11 @@ def grid_points(
     return out
 
 
-def k_path(K_values: Iterable[float], b1: float, b2: float) -> list[MapParams]:
-    """Points with fixed ``(b1, b2)`` and varying kick strength ``K`` (``0 < K < 4``, Eq. cpem)."""
+def k_path(
+    K_values: Iterable[float], b1: float | None = None, b2: float | None = None, *, table: Force | None = None
+) -> list[MapParams]:
+    """Points with fixed ``(b1, b2)``, or another force's ``table``, and varying kick strength
+    ``K`` (``0 < K < 4``, Eq. cpem)."""
+    if table is not None:
+        return [MapParams(float(K), table=table) for K in _values("K_values", K_values)]
     return [MapParams(float(K), b1, b2) for K in _values("K_values", K_values)]

@@ -20,7 +20,7 @@ from .._files import open_h5
 from .._h5verify import first_line, refresh
 from ..errors import FileFormatError
 from ..params import MapParams
-from ..spec import SweepSpec, attr_value
+from ..spec import SweepSpec, attr_value, params_of
 from .records import FORMAT, ROW_DESCRIPTIONS, ROW_FIELDS, from_record
 
 __all__ = [
@@ -33,8 +33,39 @@ __all__ = [
 ]
 
 
-def definition_mismatch(f: h5py.File, params: np.ndarray, spec: SweepSpec) -> str | None:
-    """Why the sweep stored in ``f`` is not (params, spec), or None if it is the same sweep."""
+#: The file attributes of a sweep of another force than Eq. (fx) (absent for the paper's).
+FORCE_ATTRS = ("knots", "values")
+
+
+def stored_force(f: h5py.File) -> dict[str, str] | None:
+    """The ``knots``, ``values`` a sweep file stores for another force, or None (Eq. fx)."""
+    if "knots" not in f.attrs:
+        return None
+    return {name: str(attr_value(f.attrs[name])) for name in FORCE_ATTRS}
+
+
+def stored_params(f: h5py.File) -> list[MapParams]:
+    """The points of a sweep file: ``K, b1, b2`` rows, or ``K`` rows of its one other force."""
+    force = stored_force(f)
+    rows = f["parameters"][()].tolist()
+    if force is None:
+        return [MapParams(*row) for row in rows]
+    return [params_of(row[0], **force) for row in rows]
+
+
+def definition_mismatch(
+    f: h5py.File, params: np.ndarray, spec: SweepSpec, force: dict[str, str] | None = None
+) -> str | None:
+    """Why the sweep stored in ``f`` is not (params, spec) of the paper's force or of another
+    ``force`` (its ``knots``, ``values``), or None if it is the same sweep."""
+    if stored_force(f) != force:
+
+        def text(table: dict[str, str] | None) -> str:
+            return (
+                "that of b1, b2" if table is None else f"knots = {table['knots']}, values = {table['values']}"
+            )
+
+        return f"its force is {text(stored_force(f))}, {text(force)} requested"
     stored_spec = json.loads(attr_value(f.attrs["spec"]))
     # A setting added since the file was written is stored as its default (threshold_rule).
     defaults = {field.name: field.default for field in dataclasses.fields(SweepSpec)}
@@ -44,7 +75,8 @@ def definition_mismatch(f: h5py.File, params: np.ndarray, spec: SweepSpec) -> st
     stored = f["parameters"][()]
     if stored.shape != params.shape:
         return f"the file has {stored.shape[0]} points, {params.shape[0]} requested"
-    differ = np.flatnonzero(np.any(stored != params, axis=1))
+    # another force's b1, b2 columns are NaN
+    differ = np.flatnonzero(np.any((stored != params) & ~(np.isnan(stored) & np.isnan(params)), axis=1))
     if differ.size:
         i = int(differ[0])
         return (
@@ -146,7 +178,7 @@ def read_definition(path: str | os.PathLike) -> tuple[list[MapParams], SweepSpec
     with open_for_reading(path) as f:
         try:
             spec = SweepSpec.from_json(attr_value(f.attrs["spec"]))
-            params = [MapParams(*row) for row in f["parameters"][()].tolist()]
+            params = stored_params(f)
         except (OSError, KeyError, RuntimeError) as exc:
             raise FileFormatError(
                 f"{os.fspath(path)}: cannot read the sweep's definition ({first_line(exc)})"

@@ -104,14 +104,16 @@ def run_point(
         ) from exc
     seconds = time.perf_counter() - start
     verdict = history.convergence()
-    # theory.acceleration is exact only at K = 3 (Sec. IV); elsewhere the paper has no closed form.
-    a_theory = theory.acceleration(params) if params.K == 3.0 else None
+    # theory.acceleration is exact only at K = 3 (Sec. IV); elsewhere the paper has no closed form,
+    # and another force than Eq. (fx) none at all (its row has NaN b1, b2 and domain "n/a").
+    a_theory = theory.acceleration(params) if params.K == 3.0 and params.is_paper else None
     row = {
         **run.as_dict(),  # K, b1, b2, seed, init (and settings the row does not keep)
+        **({} if params.is_paper else {"b1": math.nan, "b2": math.nan}),
         # A, A_stderr, lyapunov (+ _std, _min), chaotic_fraction, chaotic_points, and the threshold used
         **s.as_dict(),
         "index": int(index),
-        "domain": theory.domain(params),
+        "domain": theory.domain(params) if params.is_paper else "n/a",
         "A_theory": math.nan if a_theory is None else float(a_theory),
         "points": ensemble.points,  # as run: a grid rounds down to a square
         "steps": ensemble.step,
@@ -231,9 +233,16 @@ def run_sweep(
         Ensemble.check_fits(spec.points)
     if client is not None and not isinstance(client, str):
         _connect(client)  # checks the type (and that Dask is installed) before any file is touched
+    forces = {p.table for p in params_list if not p.is_paper}
+    if out is not None and (len(forces) > 1 or (forces and any(p.is_paper for p in params_list))):
+        raise ParameterError(
+            "a sweep file holds the paper's force (b1, b2 per point) or one other force (K per point); "
+            f"these points have {len(forces) + any(p.is_paper for p in params_list)} forces"
+        )
     table = np.array([[p.K, p.b1, p.b2] for p in params_list], dtype=np.float64)
 
-    sweep_file = SweepFile(out, table, spec, force) if out is not None else None
+    other = forces.pop().as_strings() if forces else None
+    sweep_file = SweepFile(out, table, spec, force, other) if out is not None else None
     try:
         done = {row["index"]: row for row in sweep_file.rows()} if sweep_file is not None else {}
         todo = [(i, p) for i, p in enumerate(params_list) if i not in done]
