@@ -1,0 +1,181 @@
+"""One ensemble sharded across a Dask cluster (warpratchet.cluster): the single machine's numbers.
+
+The cluster is a LocalCluster of two worker processes on loopback, each with a memory limit below
+what the whole ensemble's shard would need (the Nanny's own memory actions are switched off, so
+the limit is the number the run checks against, not a reason to kill a worker).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+
+import numpy as np
+import pytest
+from support import bits, same_history
+
+from warpratchet.cluster import ShardedRun, run_shard, run_sharded, shard_bounds, shard_bytes
+from warpratchet.ensemble import Ensemble
+from warpratchet.errors import ResourceError
+from warpratchet.history import History
+from warpratchet.runloop import Observer
+from warpratchet.spec import RunSpec
+from warpratchet.transport import TransportEnsemble
+
+distributed = pytest.importorskip("distributed")
+
+SPEC = RunSpec(K=3.0, b1=0.1, b2=0.01, points=2000, steps=3000, seed=3, threads=1, chunk_steps=500)
+#: Below one shard of the whole ensemble, above a shard of half of it.
+MEMORY_LIMIT = (shard_bytes(SPEC, SPEC.points // 2) + shard_bytes(SPEC, SPEC.points)) // 2
+
+
+def exact(value):
+    """A report's value in a form that compares bit for bit (floats by their bits, NaN included)."""
+    if isinstance(value, dict):
+        return {k: exact(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [exact(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return (value.dtype.str, value.shape, value.tobytes())
+    return bits(value)
+
+
+def single_machine(transport: bool) -> tuple[dict, History, dict | None]:
+    """The run on one machine, as ``warpratchet run`` makes it: summary, history, transport report."""
+    kind = TransportEnsemble if transport else Ensemble
+    ensemble = kind.sample(SPEC.params, SPEC.points, SPEC.init, SPEC.seed, threads=2)
+    ensemble.threshold, ensemble.threshold_rule = SPEC.threshold, SPEC.threshold_rule
+    history = History(SPEC.threshold, SPEC.threshold_rule)
+    ensemble.run(SPEC.steps, [history], chunk_steps=SPEC.chunk_steps)
+    summary = ensemble.summary(SPEC.threshold, SPEC.threshold_rule, warn=False).as_dict()
+    return summary, history, ensemble.report() if transport else None
+
+
+@pytest.fixture(scope="module")
+def references():
+    return {transport: single_machine(transport) for transport in (False, True)}
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    import dask
+
+    quiet = {f"distributed.worker.memory.{k}": False for k in ("target", "spill", "pause", "terminate")}
+    with (
+        dask.config.set(quiet),
+        distributed.LocalCluster(
+            n_workers=2, processes=True, threads_per_worker=1, memory_limit=MEMORY_LIMIT,
+            host="127.0.0.1", dashboard_address=None,
+        ) as cluster,
+    ):  # fmt: skip
+        yield cluster
+
+
+@pytest.fixture(scope="module")
+def client(cluster):
+    with distributed.Client(cluster) as client:
+        yield client
+
+
+def check_merged(merged: ShardedRun, reference: tuple, transport: bool) -> None:
+    summary, history, report = reference
+    assert exact(merged.summary(SPEC.threshold, SPEC.threshold_rule, warn=False).as_dict()) == exact(summary)
+    assert same_history(merged.history, history)
+    assert exact(merged.history.as_dict()) == exact(history.as_dict())
+    assert exact(merged.history.convergence().__dict__) == exact(history.convergence().__dict__)
+    if transport:
+        assert exact(merged.report()) == exact(report)
+
+
+def test_the_memory_limit_is_below_the_whole_ensemble():
+    assert shard_bytes(SPEC, SPEC.points) > MEMORY_LIMIT >= shard_bytes(SPEC, -(-SPEC.points // 2))
+
+
+@pytest.mark.parametrize("transport", [False, True])
+@pytest.mark.parametrize("shards", [2, 3, 7])
+def test_sharded_run_equals_the_single_machine_bit_for_bit(client, references, shards, transport):
+    merged = run_sharded(SPEC, client, shards, transport=transport)
+    assert merged.shards == shards and merged.points == SPEC.points
+    check_merged(merged, references[transport], transport)
+
+
+@pytest.mark.parametrize("transport", [False, True])
+def test_one_shard_equals_the_single_machine_bit_for_bit(references, transport):
+    # one shard holds the whole ensemble: a worker of its own, in this process, without a limit
+    with (
+        distributed.LocalCluster(n_workers=1, processes=False, dashboard_address=":0") as whole,
+        distributed.Client(whole) as client,
+    ):
+        check_merged(run_sharded(SPEC, client, 1, transport=transport), references[transport], transport)
+
+
+def test_a_shard_that_does_not_fit_a_worker_is_refused_with_the_numbers(client):
+    with pytest.raises(
+        ResourceError, match=r"shards = 1: a shard of 2000 points needs .* memory limit of"
+    ) as err:
+        run_sharded(SPEC, client, 1)
+    assert "at least 2" in str(err.value)
+
+
+def test_shards_draw_their_slice_of_the_ensembles_points():
+    """A shard's records are the whole run's rows of its points (here without a cluster)."""
+    spec = RunSpec(K=3.0, b1=0.1, b2=0.01, points=50, steps=40, seed=9, threads=1, init="torus")
+    whole = run_shard(spec, 0, 50)
+    parts = [run_shard(spec, lo, hi) for lo, hi in shard_bounds(50, 3)]
+    assert [(r.lo, r.hi) for r in parts] == [(0, 16), (16, 33), (33, 50)]
+    for name in ("gain", "stretch"):
+        assert np.array_equal(np.concatenate([getattr(r, name) for r in parts], axis=1), getattr(whole, name))
+
+
+class Fails(Observer):
+    """Makes every shard fail after its first chunk."""
+
+    def after_chunk(self, ensemble, seconds):
+        raise ValueError(f"no luck at step {ensemble.step}")
+
+
+def test_a_shard_that_fails_fails_the_run_with_its_reason(client):
+    with pytest.raises(RuntimeError, match=r"shard 0 of 2 \(points 0\.\.999\) failed: ValueError: no luck"):
+        run_sharded(SPEC, client, 2, observers=[Fails()])
+
+
+class HoldsOnce(Observer):
+    """Stops the first shard that reaches its first chunk end until the test has killed its worker.
+
+    Events, not sleeps: the shard tells the test its process id and that it is mid-run, then
+    waits for "go", which the test sets once the worker is dead (and the retry, which sees
+    "killed", runs through).
+    """
+
+    def __init__(self) -> None:
+        self.held = False
+
+    def after_chunk(self, ensemble, seconds):
+        if self.held:
+            return
+        self.held = True
+        if distributed.Event("i28-killed").is_set():
+            return
+        lock = distributed.Lock("i28-first")
+        if not lock.acquire(blocking=False):
+            return  # another shard is the one held
+        distributed.Variable("i28-pid").set(os.getpid())
+        distributed.Event("i28-reached").set()
+        distributed.Event("i28-go").wait()
+
+
+def test_a_worker_killed_mid_run_leaves_the_result_unchanged(client, references):
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(1) as pool:
+        future = pool.submit(run_sharded, SPEC, client, 2, observers=[HoldsOnce()])
+        try:
+            assert distributed.Event("i28-reached", client=client).wait(timeout=600)
+            pid = distributed.Variable("i28-pid", client=client).get(timeout=60)
+            os.kill(pid, signal.SIGKILL)
+            distributed.Event("i28-killed", client=client).set()
+        finally:
+            distributed.Event("i28-go", client=client).set()
+        merged = future.result(timeout=600)
+    assert pid not in client.run(os.getpid).values()  # the held shard's worker did die
+    check_merged(merged, references[False], False)

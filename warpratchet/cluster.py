@@ -1,0 +1,382 @@
+"""One ensemble split across the workers of a Dask cluster, with the single machine's numbers.
+
+:func:`run_sharded` splits the ensemble of a :class:`~warpratchet.spec.RunSpec` by global point
+index into shards (:func:`shard_bounds`), runs each as a Dask task (:func:`run_shard`, on the
+worker's own threads) and merges what they record into a :class:`ShardedRun`: the summary, the
+history rows and block gains, and with ``transport`` the return-time and flight counts and the
+spread of the momentum. Every one of these numbers is bit for bit what the same run gives on one
+machine, for any number of shards:
+
+* **Initial conditions by global index.** A shard samples points ``lo <= i < hi`` of the one
+  ensemble (:func:`warpratchet.sampling.sampled_chunks` with ``lo``, ``hi``): the same doubles,
+  and each point's orbit and tangent are independent of the others (as they are of the thread
+  count).
+* **Per-point records, reduced in the single machine's order.** The summary (Eq. An's mean over
+  the chaotic points and its standard error) and the history's variances are two-pass
+  reductions (means first, then deviations from them) whose order of additions follows the
+  ensemble's :data:`~warpratchet.observables.SUMMARY_CHUNK` blocks, not the shards'. Partial
+  sums per shard cannot reproduce them: a deviation from the mean depends on the global mean,
+  which no shard knows while it runs. So each shard records, at the run's common steps (the
+  history's rows, :func:`~warpratchet.history.history_steps`, which hold the transport spread's
+  steps), two doubles per point: the gain ``p_n - p_0`` and the stretch ``log|DM^n v0|``
+  (:class:`ShardRecord`). The merge runs the single machine's own reductions
+  (:func:`~warpratchet.observables.summarize`, :func:`~warpratchet.history.history_row`,
+  :func:`~warpratchet.transport.diffusion.spread_moments`) over the records in global order:
+  the FTLE is ``stretch / n`` and ``A_n`` is ``gain / n``, the very operations of
+  :func:`~warpratchet.observables.lyapunov` and :func:`~warpratchet.observables.acceleration`.
+  Counts (return times, flights, runs still open) are int64 sums and merge by addition; block
+  gains are per point of a fixed subsample and merge by concatenation.
+* **No lockstep.** Shards never wait for each other: each runs to the end and hands back its
+  records; the merge starts when all are in.
+
+Cost: a record is 16 bytes per point per row (about 40 rows at n = 120000), held by the worker
+until the merge; the merge reads one row of every shard at a time (16 bytes per point of the
+whole ensemble). ``benchmarks/cluster_scaling.py`` measures it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .errors import ParameterError, ResourceError, check_count
+from .history import BLOCKS, History, block_steps, block_subsample, history_row, history_steps
+from .limits import format_bytes
+from .observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, Summary, lyapunov, momentum_gain, summarize
+from .runloop import Observer
+from .spec import RunSpec
+
+__all__ = ["ShardRecord", "ShardedRun", "shard_bounds", "shard_bytes", "run_shard", "run_sharded"]
+
+
+def shard_bounds(points: int, shards: int) -> list[tuple[int, int]]:
+    """``(lo, hi)`` of each of ``shards`` shards of ``points`` points: consecutive, as equal as can be."""
+    points = check_count("points", points, 1)
+    shards = check_count("shards", shards, 1, points)
+    bounds = [points * k // shards for k in range(shards + 1)]
+    return list(zip(bounds[:-1], bounds[1:], strict=True))
+
+
+def _ensemble_size(spec: RunSpec) -> int:
+    """Points the ensemble of ``spec`` has: a grid rounds down to a square."""
+    return math.isqrt(spec.points) ** 2 if spec.init == "grid" else spec.points
+
+
+def _kind(transport: bool):
+    if transport:
+        from .transport import TransportEnsemble
+
+        return TransportEnsemble
+    from .ensemble import Ensemble
+
+    return Ensemble
+
+
+def shard_bytes(spec: RunSpec, points: int, transport: bool = False) -> int:
+    """Memory a shard of ``points`` points needs on its worker: the state (and transport's
+    carry), one summary's working memory, and its records (16 B per point per history row)."""
+    rows = len(history_steps(0, spec.steps))
+    state = _kind(transport).bytes_per_point()
+    return points * (state + 16 * rows) + min(points, SUMMARY_CHUNK) * SUMMARY_BYTES_PER_POINT
+
+
+@dataclass
+class ShardRecord:
+    """What one shard hands back: its points ``lo <= i < hi`` at the run's common steps.
+
+    ``gain`` and ``stretch``: shape ``(rows, hi - lo)``, the gain ``p_n - p_0``
+    (:func:`~warpratchet.observables.momentum_gain`) and ``log|DM^n v0|`` at each of ``steps``;
+    ``block_*``: the block subsample's points in this shard (History's ``block_gain`` and
+    ``block_ftle`` at ``block_steps``); ``counts`` and ``open_counts``: the ``(3, BINS)``
+    completed and still-open runs of a transport run (None otherwise).
+    """
+
+    lo: int
+    hi: int
+    steps: np.ndarray
+    gain: np.ndarray
+    stretch: np.ndarray
+    block_steps: np.ndarray
+    block_gain: np.ndarray
+    block_ftle: np.ndarray
+    counts: np.ndarray | None
+    open_counts: np.ndarray | None
+    seconds: float
+
+
+class _Recorder(Observer):
+    """Keeps a shard's :class:`ShardRecord` arrays at the row and block steps (ends chunks there)."""
+
+    def __init__(self, steps: list[int], blocks: list[int], members: np.ndarray, points: int) -> None:
+        self.steps, self.blocks, self.members = steps, blocks, members
+        self.gain = np.empty((len(steps), points))
+        self.stretch = np.empty((len(steps), points))
+        self.block_gain = np.empty((len(blocks), members.size))
+        self.block_ftle = np.empty((len(blocks), members.size))
+
+    def next_stop(self, step: int) -> int | None:
+        return next((n for n in sorted({*self.steps, *self.blocks}) if n > step), None)
+
+    def after_chunk(self, ensemble: Any, seconds: float) -> None:
+        step = ensemble.step
+        views = ensemble.views()
+        if step in self.steps:
+            row = self.steps.index(step)
+            self.gain[row] = momentum_gain(views)
+            # lyapunov's numerator: the merge divides it by n, as lyapunov does
+            self.stretch[row] = views["log_stretch"] + np.log(np.hypot(views["dx"], views["dp"]))
+        if step in self.blocks:
+            row = self.blocks.index(step)
+            sub = {name: values[self.members] for name, values in views.items()}
+            self.block_gain[row] = momentum_gain(sub)
+            self.block_ftle[row] = lyapunov(sub, step)
+
+
+def run_shard(spec: RunSpec, lo: int, hi: int, transport: bool = False, observers=()) -> ShardRecord:
+    """Run points ``lo <= i < hi`` of the ensemble of ``spec`` to ``spec.steps``: what a Dask task does.
+
+    A pure function of its arguments (apart from ``seconds``). ``observers`` are added to the
+    shard's run (e.g. a progress report of its own).
+    """
+    from .sampling import sampled_chunks
+
+    n, chunks = sampled_chunks(spec.params, spec.init, spec.points, spec.seed, lo, hi)
+    kind = _kind(transport)
+    ensemble = kind(
+        spec.params, None, None, device=spec.device, threads=spec.threads, sampler=spec.init,
+        seed=spec.seed, _chunks=(hi - lo, chunks),
+    )  # fmt: skip
+    indices = block_subsample(n, spec.seed)
+    members = indices[(indices >= lo) & (indices < hi)] - lo
+    recorder = _Recorder(history_steps(0, spec.steps), block_steps(0, spec.steps, BLOCKS), members, hi - lo)
+    start = time.perf_counter()
+    from .ensemble import Ensemble
+
+    # Ensemble.run itself (not TransportEnsemble.run): the spread is the merge's, from the records.
+    Ensemble.run(ensemble, spec.steps, [recorder, *observers], spec.chunk_steps)
+    seconds = time.perf_counter() - start
+    counts = open_counts = None
+    if transport:
+        counts = ensemble.histograms().counts()
+        open_counts = ensemble.open_runs().counts()
+    return ShardRecord(
+        lo, hi, np.array(recorder.steps, dtype=np.int64), recorder.gain, recorder.stretch,
+        np.array(recorder.blocks, dtype=np.int64), recorder.block_gain, recorder.block_ftle,
+        counts, open_counts, seconds,
+    )  # fmt: skip
+
+
+def _point_state(gain: np.ndarray, stretch: np.ndarray) -> dict[str, np.ndarray]:
+    """A state whose :func:`~warpratchet.observables.momentum_gain` is ``gain`` and whose
+    :func:`~warpratchet.observables.lyapunov` at ``n`` is ``stretch / n``, bit for bit.
+
+    ``gain + (0.0 - (0.0 - 0.0))`` is ``gain`` and ``stretch + log(hypot(1, 0))`` is ``stretch``;
+    the constant fields are broadcast views, no memory.
+    """
+    zero = np.broadcast_to(0.0, gain.shape)
+    one = np.broadcast_to(1.0, gain.shape)
+    return {"winding": gain, "q": zero, "p0": zero, "dx": one, "dp": zero, "log_stretch": stretch}
+
+
+class ShardedRun:
+    """The merged result of :func:`run_sharded`: what ``warpratchet run`` reports, bit for bit.
+
+    Attributes
+    ----------
+    params, points, step, seed, sampler, threads
+        As an :class:`~warpratchet.ensemble.Ensemble` of the run has them (``threads``: each
+        shard's, as given in the spec).
+    shards : int
+        Number of shards.
+    history : History
+        The run's history rows and block gains (:class:`~warpratchet.history.History`).
+    seconds : float
+        Wall time of the run, from the first submission to the end of the merge.
+    merge_seconds : float
+        The merge's part of it.
+    """
+
+    def __init__(self, spec: RunSpec, records: list[ShardRecord], transport: bool) -> None:
+        start = time.perf_counter()
+        self.spec = spec
+        self.params = spec.params
+        self.points = records[-1].hi
+        self.step = spec.steps
+        self.seed = spec.seed
+        self.sampler = spec.init
+        self.threads = spec.threads
+        self.shards = len(records)
+        self.transport = transport
+        self._records = records
+        self._steps = [int(n) for n in records[0].steps]
+        self._summaries: dict[tuple, Summary] = {}
+        self.history = self._history()
+        if transport:
+            self._transport = self._merge_transport()
+        self.merge_seconds = time.perf_counter() - start
+        self.seconds = math.nan
+
+    def _state(self, step: int) -> dict[str, np.ndarray]:
+        """Every point's record at ``step``, in global order."""
+        row = self._steps.index(step)
+        gain = np.concatenate([r.gain[row] for r in self._records])
+        stretch = np.concatenate([r.stretch[row] for r in self._records])
+        return _point_state(gain, stretch)
+
+    def _history(self) -> History:
+        spec = self.spec
+        rows: dict[str, list] = {}
+        for step in self._steps:
+            state = self._state(step)
+            summary = summarize(state, step, spec.threshold, spec.threshold_rule)
+            self._summaries[(step, spec.threshold, spec.threshold_rule)] = summary
+            for name, value in history_row(state, summary).items():
+                rows.setdefault(name, []).append(value)
+        first = self._records[0]
+        block_rows = {
+            "block_step": first.block_steps,
+            "block_gain": list(np.concatenate([r.block_gain for r in self._records], axis=1)),
+            "block_ftle": list(np.concatenate([r.block_ftle for r in self._records], axis=1)),
+        }
+        indices = block_subsample(self.points, self.seed)
+        return History.restore(rows, block_rows, indices, threshold=spec.threshold, rule=spec.threshold_rule)
+
+    def summary(self, threshold: float | None = None, rule: str = "strict", *, warn: bool = True) -> Summary:
+        """The summary at the last step (:meth:`Ensemble.summary <warpratchet.ensemble.Ensemble.summary>`)."""
+        key = (self.step, threshold, rule)
+        result = self._summaries.get(key)
+        if result is None:
+            result = summarize(self._state(self.step), self.step, threshold, rule)
+            self._summaries[key] = result
+        if warn:
+            result.warn()
+        return result
+
+    def _merge_transport(self) -> dict:
+        from .transport.diffusion import spread_moments, spread_steps
+        from .transport.fits import GROUPS, diffusion_fit, pooled_variance
+        from .transport.histograms import Histograms
+        from .transport.report import transport_report
+
+        counts = sum(r.counts for r in self._records)
+        still_open = sum(r.open_counts for r in self._records)
+        steps = spread_steps(0, self.step)
+        spec = self.spec
+        moments = np.array(
+            [spread_moments(self._state(n), n, spec.threshold, spec.threshold_rule) for n in steps]
+        ).reshape(len(steps), GROUPS, 3)
+        var = np.array([pooled_variance(m) for m in moments], dtype=np.float64)
+        fit = diffusion_fit(
+            np.array(steps, dtype=np.int64), var, moments.transpose(1, 0, 2) if len(steps) else None
+        )
+        return transport_report(
+            Histograms.from_counts(counts, self.step), Histograms.from_counts(still_open, self.step), fit
+        )
+
+    def report(self) -> dict:
+        """The ``"transport"`` object of ``run --json`` (a run with ``transport`` only)."""
+        if not self.transport:
+            raise ValueError("this run did not count return times and flights (run_sharded(transport=True))")
+        return self._transport
+
+
+def _worker_memory(client: Any) -> dict[str, int]:
+    """Each worker's memory limit (Dask's ``memory_limit``; the machine's memory when it has none)."""
+    from .limits import available_memory
+
+    limits = {}
+    for address, info in client.scheduler_info()["workers"].items():
+        limit = info.get("memory_limit") or 0
+        limits[address] = int(limit) if limit else int(available_memory() or 0)
+    return limits
+
+
+def _check_workers(client: Any, spec: RunSpec, bounds: list[tuple[int, int]], transport: bool) -> None:
+    """ResourceError, before any work, if the largest shard does not fit the smallest worker."""
+    limits = _worker_memory(client)
+    if not limits:
+        raise ResourceError("the Dask cluster has no workers; start some (docs/cluster.md)")
+    largest = max(hi - lo for lo, hi in bounds)
+    needed = shard_bytes(spec, largest, transport)
+    address, smallest = min(limits.items(), key=lambda item: item[1])
+    if smallest and needed > smallest:
+        rows = len(history_steps(0, spec.steps))
+        raise ResourceError(
+            f"shards = {len(bounds)}: a shard of {largest} points needs {format_bytes(needed)} "
+            f"({_kind(transport).bytes_per_point()} B of state and {16 * rows} B of records per point), "
+            f"worker {address} has a memory limit of {format_bytes(smallest)}; use more shards "
+            f"(at least {math.ceil(len(bounds) * needed / smallest)}) or workers with more memory"
+        )
+
+
+def run_sharded(
+    spec: RunSpec,
+    client: Any,
+    shards: int | None = None,
+    *,
+    transport: bool = False,
+    observers=(),
+) -> ShardedRun:
+    """Run the ensemble of ``spec`` as ``shards`` Dask tasks and merge them (module docstring).
+
+    Parameters
+    ----------
+    spec : RunSpec
+        The run; ``threads`` is each shard's (None: every core of its worker process).
+    client : dask.distributed.Client or str
+        The cluster, or its scheduler's address (connected and closed here).
+    shards : int, optional
+        Shards, ``1..points``; default one per worker.
+    transport : bool
+        Count return times and flights too (:class:`~warpratchet.transport.TransportEnsemble`).
+    observers : sequence of Observer
+        Added to every shard's run (pickled to the workers).
+
+    Raises
+    ------
+    ResourceError
+        The largest shard does not fit the smallest worker's memory limit (checked before any work).
+    RuntimeError
+        A shard failed for good (after Dask's retries of a lost worker): names the shard and why.
+    """
+    from .sweep.run import _connect
+
+    if not isinstance(spec, RunSpec):
+        raise ParameterError(f"spec = {spec!r} is not a RunSpec")
+    from .limits import check_kernel_range
+
+    check_kernel_range(spec.params)
+    client, owned = _connect(client)
+    try:
+        points = _ensemble_size(spec)
+        if shards is None:
+            shards = max(1, len(client.scheduler_info()["workers"]))
+        bounds = shard_bounds(points, min(check_count("shards", shards, 1, points), points))
+        _check_workers(client, spec, bounds, transport)
+        start = time.perf_counter()
+        futures = [
+            client.submit(run_shard, spec, lo, hi, transport, list(observers), pure=False)
+            for lo, hi in bounds
+        ]
+        records = []
+        try:
+            for k, (future, (lo, hi)) in enumerate(zip(futures, bounds, strict=True)):
+                try:
+                    records.append(future.result())
+                except Exception as exc:
+                    why = f"{type(exc).__name__}: {exc}"
+                    raise RuntimeError(
+                        f"shard {k} of {len(bounds)} (points {lo}..{hi - 1}) failed: {why}"
+                    ) from exc
+        finally:
+            client.cancel(futures)
+        merged = ShardedRun(spec, records, transport)
+        merged.seconds = time.perf_counter() - start
+        return merged
+    finally:
+        if owned:
+            client.close()
