@@ -12,7 +12,7 @@ import signal
 
 import numpy as np
 import pytest
-from support import bits, same_history
+from support import bits, refused, run_argv, same_history
 
 from warpratchet.cluster import ShardedRun, run_shard, run_sharded, shard_bounds, shard_bytes
 from warpratchet.ensemble import Ensemble
@@ -179,3 +179,40 @@ def test_a_worker_killed_mid_run_leaves_the_result_unchanged(client, references)
         merged = future.result(timeout=600)
     assert pid not in client.run(os.getpid).values()  # the held shard's worker did die
     check_merged(merged, references[False], False)
+
+
+# -- the command line ---------------------------------------------------------------------------------
+def run_json(capsys, *flags: str) -> dict:
+    import json
+
+    from warpratchet.cli import main
+
+    size = ["--points", str(SPEC.points), "--steps", str(SPEC.steps), "--seed", str(SPEC.seed)]
+    code = main(run_argv(*size, "--threads", "1", "--json", "--quiet", *flags))
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    return json.loads(out)
+
+
+@pytest.mark.parametrize("transport", [False, True])
+def test_run_with_scheduler_prints_the_single_machine_numbers(capsys, cluster, transport):
+    extra = ["--transport"] if transport else []
+    here = run_json(capsys, *extra)
+    there = run_json(capsys, "--scheduler", cluster.scheduler_address, "--shards", "3", *extra)
+    assert there.pop("shards") == 3 and there.pop("scheduler") == cluster.scheduler_address
+    timing = ("seconds", "point_steps_per_second")
+    assert {k: v for k, v in there.items() if k not in timing} == {
+        k: v for k, v in here.items() if k not in timing
+    }
+
+
+@pytest.mark.parametrize(
+    "flags, message",
+    [
+        (["--shards", "2"], "--shards needs --scheduler ADDRESS"),
+        (["--scheduler", "tcp://127.0.0.1:1", "--out", "x.h5"], "--out does not go with --scheduler"),
+        (["--scheduler", "tcp://127.0.0.1:1", "--shards", "0"], "shards = 0 is outside the allowed range"),
+    ],
+)
+def test_run_refuses_cluster_flags_it_cannot_honour(capsys, tmp_path, flags, message):
+    assert message in refused(capsys, run_argv("--points", "100", "--steps", "10", *flags))
