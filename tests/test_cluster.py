@@ -127,6 +127,43 @@ def test_shards_draw_their_slice_of_the_ensembles_points():
         assert np.array_equal(np.concatenate([getattr(r, name) for r in parts], axis=1), getattr(whole, name))
 
 
+class StopsAt(Observer):
+    """Fails the run at its first regular chunk end at or after ``step``; notes where runs begin."""
+
+    def __init__(self, step: int) -> None:
+        self.step = step
+        self.began: list[int] = []
+
+    def begin(self, ensemble, target_step):
+        self.began.append(ensemble.step)
+
+    def after_chunk(self, ensemble, seconds):
+        if ensemble.step >= self.step:
+            raise RuntimeError(f"stopped at step {ensemble.step}")
+
+
+@pytest.mark.parametrize("transport", [False, True])
+def test_a_shard_continues_from_its_archive_bit_for_bit(tmp_path, transport):
+    """A shard stopped after a checkpoint and run again equals one that ran through (no cluster)."""
+    whole = run_shard(SPEC, 500, 1300, transport)
+    with pytest.raises(RuntimeError, match="stopped at step 1500"):
+        run_shard(SPEC, 500, 1300, transport, [StopsAt(1500)], tmp_path, 1, checkpoint_every=500)
+    notes = StopsAt(SPEC.steps + 1)
+    again = run_shard(SPEC, 500, 1300, transport, [notes], tmp_path, 1, checkpoint_every=500)
+    assert notes.began == [1500]  # from the checkpoint, not from step 0
+    for name in (
+        "steps",
+        "gain",
+        "stretch",
+        "block_steps",
+        "block_gain",
+        "block_ftle",
+        "counts",
+        "open_counts",
+    ):
+        assert exact(getattr(again, name)) == exact(getattr(whole, name)), name
+
+
 class Fails(Observer):
     """Makes every shard fail after its first chunk."""
 
@@ -140,35 +177,44 @@ def test_a_shard_that_fails_fails_the_run_with_its_reason(client):
 
 
 class HoldsOnce(Observer):
-    """Stops the first shard that reaches its first chunk end until the test has killed its worker.
+    """Holds the first shard that passes its checkpoint at step 1000 until the test has killed its
+    worker; the retry notes the step it starts from.
 
     Events, not sleeps: the shard tells the test its process id and that it is mid-run, then
-    waits for "go", which the test sets once the worker is dead (and the retry, which sees
-    "killed", runs through).
+    waits for "go", which the test sets once the worker is dead (the retry, which sees "killed",
+    runs through).
     """
 
     def __init__(self) -> None:
         self.held = False
 
+    def begin(self, ensemble, target_step):
+        if distributed.Event("i28-killed").is_set() and ensemble.step > 0:
+            distributed.Variable("i28-resumed-at").set(ensemble.step)
+
     def after_chunk(self, ensemble, seconds):
-        if self.held:
+        if self.held or ensemble.step < 1000:
             return
         self.held = True
         if distributed.Event("i28-killed").is_set():
             return
-        lock = distributed.Lock("i28-first")
-        if not lock.acquire(blocking=False):
+        if not distributed.Lock("i28-first").acquire(blocking=False):
             return  # another shard is the one held
         distributed.Variable("i28-pid").set(os.getpid())
         distributed.Event("i28-reached").set()
         distributed.Event("i28-go").wait()
 
 
-def test_a_worker_killed_mid_run_leaves_the_result_unchanged(client, references):
+def test_a_worker_killed_mid_run_is_retried_from_its_checkpoint_with_the_result_unchanged(
+    client, references, tmp_path
+):
     from concurrent.futures import ThreadPoolExecutor
 
+    work = tmp_path / "shards"
     with ThreadPoolExecutor(1) as pool:
-        future = pool.submit(run_sharded, SPEC, client, 2, observers=[HoldsOnce()])
+        future = pool.submit(
+            run_sharded, SPEC, client, 2, observers=[HoldsOnce()], workdir=work, checkpoint_every=500
+        )
         try:
             assert distributed.Event("i28-reached", client=client).wait(timeout=600)
             pid = distributed.Variable("i28-pid", client=client).get(timeout=60)
@@ -178,7 +224,10 @@ def test_a_worker_killed_mid_run_leaves_the_result_unchanged(client, references)
             distributed.Event("i28-go", client=client).set()
         merged = future.result(timeout=600)
     assert pid not in client.run(os.getpid).values()  # the held shard's worker did die
+    assert distributed.Variable("i28-resumed-at", client=client).get(timeout=60) == 1000
     check_merged(merged, references[False], False)
+    # the same call again finds every shard complete in its archive: nothing runs, same numbers
+    check_merged(run_sharded(SPEC, client, 2, workdir=work), references[False], False)
 
 
 # -- the command line ---------------------------------------------------------------------------------
@@ -216,3 +265,10 @@ def test_run_with_scheduler_prints_the_single_machine_numbers(capsys, cluster, t
 )
 def test_run_refuses_cluster_flags_it_cannot_honour(capsys, tmp_path, flags, message):
     assert message in refused(capsys, run_argv("--points", "100", "--steps", "10", *flags))
+
+
+def test_a_workdir_of_another_run_is_refused(client, tmp_path):
+    other = RunSpec(K=3.0, b1=0.1, b2=0.01, points=100, steps=50, seed=4, threads=1)
+    run_sharded(other, client, 2, workdir=tmp_path)
+    with pytest.raises(ValueError, match=r"holds the shards of another run \(it differs in seed\)"):
+        run_sharded(RunSpec(**{**other.as_dict(), "seed": 5}), client, 2, workdir=tmp_path)

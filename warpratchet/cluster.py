@@ -37,6 +37,7 @@ whole ensemble). ``benchmarks/cluster_scaling.py`` measures it.
 from __future__ import annotations
 
 import math
+import os
 import time
 from dataclasses import dataclass
 from typing import Any
@@ -50,7 +51,15 @@ from .observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, Summary, lyapun
 from .runloop import Observer
 from .spec import RunSpec
 
-__all__ = ["ShardRecord", "ShardedRun", "shard_bounds", "shard_bytes", "run_shard", "run_sharded"]
+__all__ = [
+    "ShardRecord",
+    "ShardedRun",
+    "shard_bounds",
+    "shard_bytes",
+    "shard_paths",
+    "run_shard",
+    "run_sharded",
+]
 
 
 def shard_bounds(points: int, shards: int) -> list[tuple[int, int]]:
@@ -109,10 +118,18 @@ class ShardRecord:
 
 
 class _Recorder(Observer):
-    """Keeps a shard's :class:`ShardRecord` arrays at the row and block steps (ends chunks there)."""
+    """Keeps a shard's :class:`ShardRecord` arrays at the row and block steps (ends chunks there).
 
-    def __init__(self, steps: list[int], blocks: list[int], members: np.ndarray, points: int) -> None:
-        self.steps, self.blocks, self.members = steps, blocks, members
+    With a ``folder``, each step's records also go to ``step-NNNNNNNNNNNN.npz`` there, written under
+    a temporary name and published atomically before the run goes on: a shard retried from its
+    archive's checkpoint at step ``c`` finds every record up to ``c`` (:meth:`load`), since the
+    records of a step are on disk before the archive's checkpoint of that step is written.
+    """
+
+    def __init__(
+        self, steps: list[int], blocks: list[int], members: np.ndarray, points: int, folder: str | None = None
+    ) -> None:
+        self.steps, self.blocks, self.members, self.folder = steps, blocks, members, folder
         self.gain = np.empty((len(steps), points))
         self.stretch = np.empty((len(steps), points))
         self.block_gain = np.empty((len(blocks), members.size))
@@ -124,40 +141,123 @@ class _Recorder(Observer):
     def after_chunk(self, ensemble: Any, seconds: float) -> None:
         step = ensemble.step
         views = ensemble.views()
+        due = {}
         if step in self.steps:
             row = self.steps.index(step)
             self.gain[row] = momentum_gain(views)
             # lyapunov's numerator: the merge divides it by n, as lyapunov does
             self.stretch[row] = views["log_stretch"] + np.log(np.hypot(views["dx"], views["dp"]))
+            due.update(gain=self.gain[row], stretch=self.stretch[row])
         if step in self.blocks:
             row = self.blocks.index(step)
             sub = {name: values[self.members] for name, values in views.items()}
             self.block_gain[row] = momentum_gain(sub)
             self.block_ftle[row] = lyapunov(sub, step)
+            due.update(block_gain=self.block_gain[row], block_ftle=self.block_ftle[row])
+        if due and self.folder is not None:
+            self._save(step, due)
+
+    def _path(self, step: int) -> str:
+        return os.path.join(self.folder, f"step-{step:012d}.npz")
+
+    def _save(self, step: int, arrays: dict[str, np.ndarray]) -> None:
+        from ._files import publish, temporary_beside
+
+        path = self._path(step)
+        with temporary_beside(path) as tmp:
+            with open(tmp, "wb") as f:
+                np.savez(f, **arrays)
+                f.flush()
+                os.fsync(f.fileno())
+            publish(tmp, path, replace=True)
+
+    def load(self, step: int) -> None:
+        """The records of every step up to ``step`` from :attr:`folder` (a retried shard's)."""
+        for n in sorted({*self.steps, *self.blocks}):
+            if n > step:
+                break
+            with np.load(self._path(n)) as saved:
+                if n in self.steps:
+                    row = self.steps.index(n)
+                    self.gain[row], self.stretch[row] = saved["gain"], saved["stretch"]
+                if n in self.blocks:
+                    row = self.blocks.index(n)
+                    self.block_gain[row], self.block_ftle[row] = saved["block_gain"], saved["block_ftle"]
 
 
-def run_shard(spec: RunSpec, lo: int, hi: int, transport: bool = False, observers=()) -> ShardRecord:
+def _sample_shard(spec: RunSpec, lo: int, hi: int, transport: bool):
+    """The ensemble of points ``lo <= i < hi`` of ``spec``'s ensemble, at step 0."""
+    from .sampling import sampled_chunks
+
+    _, chunks = sampled_chunks(spec.params, spec.init, spec.points, spec.seed, lo, hi)
+    return _kind(transport)(
+        spec.params, None, None, device=spec.device, threads=spec.threads, sampler=spec.init,
+        seed=spec.seed, _chunks=(hi - lo, chunks),
+    )  # fmt: skip
+
+
+def shard_paths(workdir: str | os.PathLike, index: int) -> tuple[str, str]:
+    """``(archive, records folder)`` of shard ``index`` in ``workdir``."""
+    base = os.path.join(os.fspath(workdir), f"shard-{index:04d}")
+    return base + ".h5", base + ".records"
+
+
+def run_shard(
+    spec: RunSpec,
+    lo: int,
+    hi: int,
+    transport: bool = False,
+    observers=(),
+    workdir: str | os.PathLike | None = None,
+    index: int = 0,
+    checkpoint_every: int | None = None,
+) -> ShardRecord:
     """Run points ``lo <= i < hi`` of the ensemble of ``spec`` to ``spec.steps``: what a Dask task does.
 
     A pure function of its arguments (apart from ``seconds``). ``observers`` are added to the
     shard's run (e.g. a progress report of its own).
-    """
-    from .sampling import sampled_chunks
 
-    n, chunks = sampled_chunks(spec.params, spec.init, spec.points, spec.seed, lo, hi)
-    kind = _kind(transport)
-    ensemble = kind(
-        spec.params, None, None, device=spec.device, threads=spec.threads, sampler=spec.init,
-        seed=spec.seed, _chunks=(hi - lo, chunks),
-    )  # fmt: skip
-    indices = block_subsample(n, spec.seed)
-    members = indices[(indices >= lo) & (indices < hi)] - lo
-    recorder = _Recorder(history_steps(0, spec.steps), block_steps(0, spec.steps, BLOCKS), members, hi - lo)
-    start = time.perf_counter()
+    With a ``workdir`` (a folder every worker sees), the shard streams into an archive of its
+    own there (:func:`shard_paths`: an ordinary archive of its points, checkpointed every
+    ``checkpoint_every`` steps, :class:`~warpratchet.archive.ArchiveSink`) and keeps its records
+    beside it; a shard whose archive exists (a retry after its worker died) continues from the
+    archive's checkpoint, bit for bit.
+    """
     from .ensemble import Ensemble
 
-    # Ensemble.run itself (not TransportEnsemble.run): the spread is the merge's, from the records.
-    Ensemble.run(ensemble, spec.steps, [recorder, *observers], spec.chunk_steps)
+    n = _ensemble_size(spec)
+    indices = block_subsample(n, spec.seed)
+    members = indices[(indices >= lo) & (indices < hi)] - lo
+    archive, folder = shard_paths(workdir, index) if workdir is not None else (None, None)
+    recorder = _Recorder(
+        history_steps(0, spec.steps), block_steps(0, spec.steps, BLOCKS), members, hi - lo, folder
+    )
+    sink = None
+    if archive is None:
+        ensemble = _sample_shard(spec, lo, hi, transport)
+    else:
+        from .archive import ArchiveSink
+
+        os.makedirs(folder, exist_ok=True)
+        if os.path.exists(archive):
+            sink, ensemble = ArchiveSink.resume(archive, threads=spec.threads, device=spec.device)
+            recorder.load(ensemble.step)
+        else:
+            ensemble = _sample_shard(spec, lo, hi, transport)
+            sink = ArchiveSink(
+                archive, ensemble, chunk_steps=spec.chunk_steps, checkpoint_every=checkpoint_every,
+                threshold=spec.threshold, threshold_rule=spec.threshold_rule,
+            )  # fmt: skip
+    start = time.perf_counter()
+    try:
+        # Ensemble.run itself (not TransportEnsemble.run): the spread is the merge's, from the
+        # records. The recorder comes before the sink: a step's records are kept before its checkpoint.
+        watchers = [recorder, *([sink] if sink is not None else []), *observers]
+        chunk_steps = spec.chunk_steps if sink is None else sink.chunk_steps
+        Ensemble.run(ensemble, spec.steps - ensemble.step, watchers, chunk_steps)
+    finally:
+        if sink is not None:
+            sink.close()
     seconds = time.perf_counter() - start
     counts = open_counts = None
     if transport:
@@ -313,6 +413,31 @@ def _check_workers(client: Any, spec: RunSpec, bounds: list[tuple[int, int]], tr
         )
 
 
+def _claim_workdir(workdir: str | os.PathLike, spec: RunSpec, bounds: list, transport: bool) -> str:
+    """``workdir`` as an absolute path, made if missing, with ``run.json`` naming the run its shards
+    belong to; ParameterError if it holds the shards of another run (its archives would be resumed)."""
+    import json
+
+    workdir = os.path.abspath(os.fspath(workdir))
+    run = {k: v for k, v in json.loads(spec.to_json()).items() if k not in ("threads", "device")}
+    run.update(transport=transport, shards=[list(b) for b in bounds])
+    manifest = os.path.join(workdir, "run.json")
+    if os.path.exists(manifest):
+        with open(manifest) as f:
+            held = json.load(f)
+        if held != run:
+            differ = sorted(k for k in run.keys() | held.keys() if run.get(k) != held.get(k))
+            raise ParameterError(
+                f"workdir = {workdir} holds the shards of another run (it differs in {', '.join(differ)}); "
+                "choose another folder or remove it"
+            )
+        return workdir
+    os.makedirs(workdir, exist_ok=True)
+    with open(manifest, "w") as f:
+        json.dump(run, f, indent=1)
+    return workdir
+
+
 def run_sharded(
     spec: RunSpec,
     client: Any,
@@ -320,6 +445,8 @@ def run_sharded(
     *,
     transport: bool = False,
     observers=(),
+    workdir: str | os.PathLike | None = None,
+    checkpoint_every: int | None = None,
 ) -> ShardedRun:
     """Run the ensemble of ``spec`` as ``shards`` Dask tasks and merge them (module docstring).
 
@@ -335,6 +462,12 @@ def run_sharded(
         Count return times and flights too (:class:`~warpratchet.transport.TransportEnsemble`).
     observers : sequence of Observer
         Added to every shard's run (pickled to the workers).
+    workdir : path, optional
+        A folder on storage every worker shares: each shard keeps an archive of its points and
+        its records there (:func:`run_shard`), so that a shard whose worker dies is retried from
+        its last checkpoint rather than from step 0. The folder is made if missing.
+    checkpoint_every : int, optional
+        Steps between the shards' checkpoints (with ``workdir``; default: the archive's).
 
     Raises
     ------
@@ -357,10 +490,14 @@ def run_sharded(
             shards = max(1, len(client.scheduler_info()["workers"]))
         bounds = shard_bounds(points, min(check_count("shards", shards, 1, points), points))
         _check_workers(client, spec, bounds, transport)
+        if workdir is not None:
+            workdir = _claim_workdir(workdir, spec, bounds, transport)
         start = time.perf_counter()
         futures = [
-            client.submit(run_shard, spec, lo, hi, transport, list(observers), pure=False)
-            for lo, hi in bounds
+            client.submit(
+                run_shard, spec, lo, hi, transport, list(observers), workdir, k, checkpoint_every, pure=False
+            )
+            for k, (lo, hi) in enumerate(bounds)
         ]
         records = []
         try:
