@@ -244,11 +244,22 @@ def run_json(capsys, *flags: str) -> dict:
 
 
 @pytest.mark.parametrize("transport", [False, True])
-def test_run_with_scheduler_prints_the_single_machine_numbers(capsys, cluster, transport):
+def test_run_with_scheduler_prints_the_single_machine_numbers(capsys, cluster, tmp_path, transport):
     extra = ["--transport"] if transport else []
     here = run_json(capsys, *extra)
-    there = run_json(capsys, "--scheduler", cluster.scheduler_address, "--shards", "3", *extra)
+    work = str(tmp_path / "shards")
+    there = run_json(
+        capsys, "--scheduler", cluster.scheduler_address, "--shards", "3", "--workdir", work, *extra
+    )
     assert there.pop("shards") == 3 and there.pop("scheduler") == cluster.scheduler_address
+    assert there.pop("workdir") == work and sorted(os.listdir(work))[:2] == ["run.json", "shard-0000.h5"]
+    # each shard's archive is an ordinary one: it verifies, and holds its points at the last step
+    from warpratchet import open_archive
+    from warpratchet.archive.verify import verify_archive
+
+    assert verify_archive(os.path.join(work, "shard-0002.h5"))[0] == []
+    with open_archive(os.path.join(work, "shard-0002.h5")) as arc:
+        assert (arc.points, arc.checkpoint_step) == (SPEC.points - 2 * SPEC.points // 3, SPEC.steps)
     timing = ("seconds", "point_steps_per_second")
     assert {k: v for k, v in there.items() if k not in timing} == {
         k: v for k, v in here.items() if k not in timing
@@ -259,6 +270,7 @@ def test_run_with_scheduler_prints_the_single_machine_numbers(capsys, cluster, t
     "flags, message",
     [
         (["--shards", "2"], "--shards needs --scheduler ADDRESS"),
+        (["--workdir", "w"], "--workdir needs --scheduler ADDRESS"),
         (["--scheduler", "tcp://127.0.0.1:1", "--out", "x.h5"], "--out does not go with --scheduler"),
         (["--scheduler", "tcp://127.0.0.1:1", "--shards", "0"], "shards = 0 is outside the allowed range"),
     ],

@@ -31,19 +31,27 @@ def add_cluster_flags(parser: argparse.ArgumentParser) -> None:
         type=count_type("shards", 1),
         help="shards of the ensemble, 1 to --points (default: one per worker); with --scheduler",
     )
+    group.add_argument(
+        "--workdir",
+        metavar="FOLDER",
+        help="a folder every worker sees: each shard keeps an archive of its points and its records "
+        "there, a shard whose worker dies goes on from its checkpoint, and the same command again "
+        "continues (or reports) the run; with --scheduler",
+    )
 
 
 def check_cluster_flags(args: argparse.Namespace) -> bool:
     """Whether the run goes to a cluster; UsageError for flags that do not go with it."""
     if args.scheduler is None:
-        if args.shards is not None:
-            raise UsageError("--shards needs --scheduler ADDRESS (the Dask cluster to run them on)")
+        for flag, given in (("--shards", args.shards), ("--workdir", args.workdir)):
+            if given is not None:
+                raise UsageError(f"{flag} needs --scheduler ADDRESS (the Dask cluster to run on)")
         return False
     for flag, given in (("--out", args.out), ("--rerun", getattr(args, "rerun", None))):
         if given is not None:
             raise UsageError(
-                f"{flag} does not go with --scheduler: a run on a cluster reports, it does not archive "
-                "or record (docs/cluster.md)"
+                f"{flag} does not go with --scheduler: a run on a cluster keeps its shards' archives "
+                "in --workdir FOLDER (docs/cluster.md)"
             )
     return True
 
@@ -67,7 +75,7 @@ def command(args: argparse.Namespace, spec: RunSpec) -> int:
         raise UsageError(f"--scheduler {args.scheduler}: no Dask scheduler answers there ({exc})") from None
     with client:
         start = time.perf_counter()
-        merged = run_sharded(spec, client, args.shards, transport=args.transport)
+        merged = run_sharded(spec, client, args.shards, transport=args.transport, workdir=args.workdir)
         seconds = time.perf_counter() - start
     report = run_report(merged, seconds, spec.steps, spec.threshold, spec.threshold_rule)
     if args.transport:
@@ -75,5 +83,7 @@ def command(args: argparse.Namespace, spec: RunSpec) -> int:
     report.update(history_report(merged.history, spec.threshold_rule))
     report["shards"] = merged.shards
     report["scheduler"] = args.scheduler
+    if args.workdir is not None:
+        report["workdir"] = args.workdir
     print_report(report, args.json)
     return 0
