@@ -284,3 +284,12 @@ def test_a_workdir_of_another_run_is_refused(client, tmp_path):
     run_sharded(other, client, 2, workdir=tmp_path)
     with pytest.raises(ValueError, match=r"holds the shards of another run \(it differs in seed\)"):
         run_sharded(RunSpec(**{**other.as_dict(), "seed": 5}), client, 2, workdir=tmp_path)
+
+
+def test_the_benchmark_runs_and_its_runs_are_identical():
+    from support import quick_benchmark
+
+    report = quick_benchmark("cluster_scaling.py")
+    assert report["identical"] and [r["workers"] for r in report["rows"]] == [None, 1, 2]
+    assert [m["shards"] for m in report["merge"]] == [1, 4, 16, 64, 256, 1024]
+    assert set(report["merge_projected_seconds"]) == {"100", "1000"}

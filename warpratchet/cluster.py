@@ -298,6 +298,8 @@ class ShardedRun:
         Wall time of the run, from the first submission to the end of the merge.
     merge_seconds : float
         The merge's part of it.
+    shard_seconds : list of float
+        Each shard's time in its run (on its worker).
     """
 
     def __init__(self, spec: RunSpec, records: list[ShardRecord], transport: bool) -> None:
@@ -312,6 +314,7 @@ class ShardedRun:
         self.shards = len(records)
         self.transport = transport
         self._records = records
+        self.shard_seconds = [r.seconds for r in records]
         self._steps = [int(n) for n in records[0].steps]
         self._summaries: dict[tuple, Summary] = {}
         self.history = self._history()
