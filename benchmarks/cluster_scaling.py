@@ -29,32 +29,22 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import json
 import logging
 import struct
 import sys
 import time
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
+from sweep_scaling import _log, _Parser  # the sibling benchmark's one-line errors and progress lines
 
 from warpratchet.cli import positive_int
 from warpratchet.cluster import ShardedRun, ShardRecord, run_shard, run_sharded, shard_bounds
 from warpratchet.ensemble import Ensemble
 from warpratchet.history import History
 from warpratchet.spec import RunSpec
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:  # one line, exit 2
-        print(f"{self.prog}: error: {message}", file=sys.stderr)
-        raise SystemExit(2)
-
-
-def _log(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
 
 
 def _exact(summary: dict, history: History) -> tuple:
