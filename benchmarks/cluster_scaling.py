@@ -8,6 +8,9 @@ The run is the strip ensemble (Eq. B) at K = 3, b1 = 0.1, b2 = 0.01, with its hi
   processes with one thread each, one shard per worker (clusters are started and warmed up, every
   worker loading the Warp kernel, before the clock starts).
 
+``cpu_seconds``: the CPU time of the single process, or of all the workers' processes (the shards'
+runs and Dask's own threads), which a busy machine inflates much less than wall time.
+
 Every row's summary and history must equal the single process's bit for bit; the script exits
 with status 1 if not.
 
@@ -79,13 +82,16 @@ def main(argv: list[str] | None = None) -> int:
         steps=args.steps or (2_000 if args.quick else 20_000),
     )  # fmt: skip
     _log(f"single process: {spec.points} points x {spec.steps} steps")
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     ensemble = Ensemble.sample(spec.params, spec.points, spec.init, spec.seed, threads=1)
     history = History(spec.threshold, spec.threshold_rule)
     ensemble.run(spec.steps, [history])
     single = time.perf_counter() - start
+    single_cpu = time.process_time() - cpu
     reference = _exact(ensemble.summary(warn=False).as_dict(), history)
-    rows: list[dict[str, Any]] = [{"executor": "single", "workers": None, "shards": 1, "seconds": single}]
+    rows: list[dict[str, Any]] = [
+        {"executor": "single", "workers": None, "shards": 1, "seconds": single, "cpu_seconds": single_cpu}
+    ]
     identical = True
     for workers in (1, 2):
         with (
@@ -97,12 +103,16 @@ def main(argv: list[str] | None = None) -> int:
         ):  # fmt: skip
             client.run(run_shard, RunSpec(K=3.0, b1=0.1, b2=0.01, points=8, steps=8, threads=1), 0, 8)
             _log(f"dask: {workers} worker(s)")
+            before = client.run(time.process_time)
             merged = run_sharded(spec, client, workers)
+            after = client.run(time.process_time)
+        cpu = sum(after[w] - before[w] for w in before)
         same = _exact(merged.summary(warn=False).as_dict(), merged.history) == reference
         identical &= same
         rows.append(
             {
                 "executor": "dask", "workers": workers, "shards": workers, "seconds": merged.seconds,
+                "cpu_seconds": cpu,
                 "merge_seconds": merged.merge_seconds, "identical": same,
                 "shard_seconds": merged.shard_seconds,
                 "fetch_seconds": merged.seconds - merged.merge_seconds - max(merged.shard_seconds),
@@ -125,6 +135,7 @@ def main(argv: list[str] | None = None) -> int:
         "rows": rows,
         "speedup_2_vs_1_workers": rows[1]["seconds"] / rows[2]["seconds"],
         "dask_1_worker_vs_single": rows[1]["seconds"] / single,
+        "workers_cpu_vs_single": [r["cpu_seconds"] / single_cpu for r in rows[1:]],
         "merge": merges,
         "merge_base_seconds": float(base),
         "merge_per_shard_seconds": float(per_shard),
@@ -137,7 +148,10 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(f"{spec.points} points x {spec.steps} steps, {history_rows} history rows")
         for r in rows:
-            print(f"  {r['executor']:>6} workers={r['workers']!s:>4}  {r['seconds']:8.2f} s")
+            print(
+                f"  {r['executor']:>6} workers={r['workers']!s:>4}  {r['seconds']:8.2f} s, "
+                f"{r['cpu_seconds']:8.2f} s CPU"
+            )
         print(f"  2 workers vs 1: x{report['speedup_2_vs_1_workers']:.2f}")
         print(f"  merge: {base:.3f} s + {per_shard * 1e3:.3f} ms per shard")
         for n, v in report["merge_projected_seconds"].items():
