@@ -293,3 +293,33 @@ def test_the_benchmark_runs_and_its_runs_are_identical():
     assert report["identical"] and [r["workers"] for r in report["rows"]] == [None, 1, 2]
     assert [m["shards"] for m in report["merge"]] == [1, 4, 16, 64, 256, 1024]
     assert set(report["merge_projected_seconds"]) == {"100", "1000"}
+
+
+# -- one archive of the whole run ------------------------------------------------------------------------
+def test_out_is_one_archive_of_the_whole_run(client, references, tmp_path):
+    from warpratchet import open_archive
+    from warpratchet.archive.verify import verify_archive
+
+    out = tmp_path / "run.h5"
+    merged = run_sharded(SPEC, client, 3, out=out)
+    summary, history, _ = references[False]
+    with open_archive(out) as arc:
+        assert (arc.points, arc.checkpoint_step, arc.target_step) == (SPEC.points, SPEC.steps, SPEC.steps)
+        assert same_history(arc.history, history)
+        series = arc.series
+        assert list(series["step"]) == history.rows["step"]
+        assert exact(float(series["A"][-1])) == exact(summary["A"])
+        assert exact(float(series["A_stderr"][-1])) == exact(summary["A_stderr"])
+        state, step = arc.checkpoint()
+        initial = arc.initial
+        ds = arc.to_xarray()
+    assert ds.sizes["step"] == len(history.rows["step"])
+    # the per-point data are the shards' own, through virtual datasets, in global order
+    whole = Ensemble.sample(SPEC.params, SPEC.points, SPEC.init, SPEC.seed, threads=2)
+    assert all(np.array_equal(initial[k], v) for k, v in whole.state().items())
+    whole.run(SPEC.steps)
+    assert step == SPEC.steps and all(np.array_equal(state[k], v) for k, v in whole.state().items())
+    assert verify_archive(out)[0] == []
+    assert merged.points == SPEC.points
+    with pytest.raises(ValueError, match="exists; choose a new path"):
+        run_sharded(SPEC, client, 3, out=out)

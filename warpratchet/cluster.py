@@ -311,6 +311,7 @@ class ShardedRun:
         self.seed = spec.seed
         self.sampler = spec.init
         self.threads = spec.threads
+        self.device = spec.device
         self.shards = len(records)
         self.transport = transport
         self._records = records
@@ -348,12 +349,23 @@ class ShardedRun:
         indices = block_subsample(self.points, self.seed)
         return History.restore(rows, block_rows, indices, threshold=spec.threshold, rule=spec.threshold_rule)
 
-    def summary(self, threshold: float | None = None, rule: str = "strict", *, warn: bool = True) -> Summary:
-        """The summary at the last step (:meth:`Ensemble.summary <warpratchet.ensemble.Ensemble.summary>`)."""
-        key = (self.step, threshold, rule)
+    def summary(
+        self,
+        threshold: float | None = None,
+        rule: str = "strict",
+        *,
+        warn: bool = True,
+        step: int | None = None,
+    ) -> Summary:
+        """The summary at the last step (:meth:`Ensemble.summary <warpratchet.ensemble.Ensemble.summary>`),
+        or at ``step``, one of the history's row steps."""
+        step = self.step if step is None else step
+        if step not in self._steps:
+            raise ValueError(f"step = {step} is not one of the steps the shards recorded: {self._steps}")
+        key = (step, threshold, rule)
         result = self._summaries.get(key)
         if result is None:
-            result = summarize(self._state(self.step), self.step, threshold, rule)
+            result = summarize(self._state(step), step, threshold, rule)
             self._summaries[key] = result
         if warn:
             result.warn()
@@ -450,6 +462,7 @@ def run_sharded(
     observers=(),
     workdir: str | os.PathLike | None = None,
     checkpoint_every: int | None = None,
+    out: str | os.PathLike | None = None,
 ) -> ShardedRun:
     """Run the ensemble of ``spec`` as ``shards`` Dask tasks and merge them (module docstring).
 
@@ -471,6 +484,10 @@ def run_sharded(
         its last checkpoint rather than from step 0. The folder is made if missing.
     checkpoint_every : int, optional
         Steps between the shards' checkpoints (with ``workdir``; default: the archive's).
+    out : path, optional
+        One archive of the whole run, written when it is merged (a new file; ``workdir``
+        defaults to ``out`` + ``".shards"``): the merged series and history, and the shards'
+        per-point data as virtual datasets over their archives (:mod:`warpratchet._cluster_archive`).
 
     Raises
     ------
@@ -486,6 +503,12 @@ def run_sharded(
     from .limits import check_kernel_range
 
     check_kernel_range(spec.params)
+    if out is not None:
+        out = os.fspath(out)
+        if os.path.lexists(out):
+            raise ParameterError(f"out = {out} exists; choose a new path (nothing was run)")
+        if workdir is None:
+            workdir = out + ".shards"
     client, owned = _connect(client)
     try:
         points = _ensemble_size(spec)
@@ -516,6 +539,10 @@ def run_sharded(
             client.cancel(futures)
         merged = ShardedRun(spec, records, transport)
         merged.seconds = time.perf_counter() - start
+        if out is not None:
+            from ._cluster_archive import write_merged
+
+            write_merged(out, merged, workdir, bounds)
         return merged
     finally:
         if owned:
