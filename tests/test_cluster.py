@@ -271,7 +271,7 @@ def test_run_with_scheduler_prints_the_single_machine_numbers(capsys, cluster, t
     [
         (["--shards", "2"], "--shards needs --scheduler ADDRESS"),
         (["--workdir", "w"], "--workdir needs --scheduler ADDRESS"),
-        (["--scheduler", "tcp://127.0.0.1:1", "--out", "x.h5"], "--out does not go with --scheduler"),
+        (["--scheduler", "tcp://127.0.0.1:1", "--snapshot-every", "5"], "--snapshot-every does not go with"),
         (["--scheduler", "tcp://127.0.0.1:1", "--shards", "0"], "shards = 0 is outside the allowed range"),
     ],
 )
@@ -323,3 +323,23 @@ def test_out_is_one_archive_of_the_whole_run(client, references, tmp_path):
     assert merged.points == SPEC.points
     with pytest.raises(ValueError, match="exists; choose a new path"):
         run_sharded(SPEC, client, 3, out=out)
+
+
+def test_run_with_scheduler_and_out_the_same_command_again_reports_it(capsys, cluster, tmp_path, references):
+    from warpratchet import open_archive
+
+    out = str(tmp_path / "run.h5")
+    flags = ("--scheduler", cluster.scheduler_address, "--shards", "2", "--out", out)
+    first = run_json(capsys, *flags)
+    assert first["archive"] == out and first["workdir"] == out + ".shards"
+    with open_archive(out) as arc:
+        assert same_history(arc.history, references[False][1])
+    stamp = os.stat(out).st_mtime_ns
+    again = run_json(capsys, *flags)
+    timing = ("seconds", "point_steps_per_second")
+    assert {k: v for k, v in again.items() if k not in timing} == {
+        k: v for k, v in first.items() if k not in timing
+    }
+    assert os.stat(out).st_mtime_ns == stamp  # reported, not rewritten
+    other = run_argv("--points", "100", "--steps", "10", *flags)
+    assert "exists and is not an archive of this run" in refused(capsys, other)

@@ -8,6 +8,7 @@ the same command prints on one machine, plus ``shards`` and ``scheduler``.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 
@@ -47,13 +48,35 @@ def check_cluster_flags(args: argparse.Namespace) -> bool:
             if given is not None:
                 raise UsageError(f"{flag} needs --scheduler ADDRESS (the Dask cluster to run on)")
         return False
-    for flag, given in (("--out", args.out), ("--rerun", getattr(args, "rerun", None))):
-        if given is not None:
-            raise UsageError(
-                f"{flag} does not go with --scheduler: a run on a cluster keeps its shards' archives "
-                "in --workdir FOLDER (docs/cluster.md)"
-            )
+    refused = (
+        ("--rerun", getattr(args, "rerun", None)),
+        ("--snapshot-every", args.snapshot_every),
+        ("--snapshot-points", args.snapshot_points),
+        ("--force", args.force),
+    )
+    for flag, given in refused:
+        if given:
+            raise UsageError(f"{flag} does not go with --scheduler (docs/cluster.md)")
     return True
+
+
+#: The settings an archive of the same run must share with the command (not threads, device or
+#: chunk_steps: the numbers do not depend on them).
+_SAME_RUN = ("K", "b1", "b2", "init", "points", "seed", "steps", "threshold", "threshold_rule")
+
+
+def _same_run(out: str, spec: RunSpec) -> None:
+    """UsageError unless ``out`` is an archive of this run (the same command again)."""
+    from ..archive import ArchiveError, open_archive
+
+    why = f"{out} exists and is not an archive of this run; choose another file"
+    try:
+        with open_archive(out) as arc:
+            stored = arc.spec
+    except ArchiveError:
+        raise UsageError(why) from None
+    if stored is None or any(getattr(stored, k) != getattr(spec, k) for k in _SAME_RUN):
+        raise UsageError(why)
 
 
 def command(args: argparse.Namespace, spec: RunSpec) -> int:
@@ -67,15 +90,26 @@ def command(args: argparse.Namespace, spec: RunSpec) -> int:
         raise UsageError(
             "--scheduler needs dask.distributed: pip install 'warpratchet[distributed]'"
         ) from None
-    if not args.quiet:
-        print(f"warpratchet: connecting to the Dask scheduler at {args.scheduler}", file=sys.stderr)
+    out, workdir = args.out, args.workdir
+    if out is not None and workdir is None:
+        workdir = out + ".shards"
+    if out is not None and os.path.lexists(out):
+        _same_run(out, spec)
+        _say(args, f"{out} holds this run already: its report, merged again from the shards in {workdir}")
+        write = None
+    else:
+        write = out
+    _say(args, f"connecting to the Dask scheduler at {args.scheduler}")
     try:
         client = distributed.Client(args.scheduler, timeout="60s")
     except OSError as exc:
         raise UsageError(f"--scheduler {args.scheduler}: no Dask scheduler answers there ({exc})") from None
     with client:
         start = time.perf_counter()
-        merged = run_sharded(spec, client, args.shards, transport=args.transport, workdir=args.workdir)
+        merged = run_sharded(
+            spec, client, args.shards, transport=args.transport, workdir=workdir, out=write,
+            checkpoint_every=args.checkpoint_every,
+        )  # fmt: skip
         seconds = time.perf_counter() - start
     report = run_report(merged, seconds, spec.steps, spec.threshold, spec.threshold_rule)
     if args.transport:
@@ -83,7 +117,15 @@ def command(args: argparse.Namespace, spec: RunSpec) -> int:
     report.update(history_report(merged.history, spec.threshold_rule))
     report["shards"] = merged.shards
     report["scheduler"] = args.scheduler
-    if args.workdir is not None:
-        report["workdir"] = args.workdir
+    if workdir is not None:
+        report["workdir"] = workdir
+    if out is not None:
+        report["archive"] = out
     print_report(report, args.json)
     return 0
+
+
+def _say(args: argparse.Namespace, message: str) -> None:
+    """One line on stderr about what the command does (not with --quiet)."""
+    if not args.quiet:
+        print(f"warpratchet: {message}", file=sys.stderr)
