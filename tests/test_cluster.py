@@ -343,3 +343,11 @@ def test_run_with_scheduler_and_out_the_same_command_again_reports_it(capsys, cl
     assert os.stat(out).st_mtime_ns == stamp  # reported, not rewritten
     other = run_argv("--points", "100", "--steps", "10", *flags)
     assert "exists and is not an archive of this run" in refused(capsys, other)
+
+
+def test_a_merge_this_machine_cannot_hold_is_refused_with_the_numbers():
+    from warpratchet.cluster import check_merge
+
+    check_merge(SPEC.points, transport=True)  # a few hundred kB
+    with pytest.raises(ResourceError, match=r"points = 10000000000000 \(the merge of a sharded run\) needs"):
+        check_merge(10**13)

@@ -52,6 +52,7 @@ from .runloop import Observer
 from .spec import RunSpec
 
 __all__ = [
+    "check_merge",
     "ShardRecord",
     "ShardedRun",
     "shard_bounds",
@@ -400,14 +401,33 @@ class ShardedRun:
 
 
 def _worker_memory(client: Any) -> dict[str, int]:
-    """Each worker's memory limit (Dask's ``memory_limit``; the machine's memory when it has none)."""
+    """Each worker's memory: Dask's ``memory_limit``, or where it has none, what its machine has
+    available (asked of the worker; 0 where unknown)."""
     from .limits import available_memory
 
     limits = {}
+    unlimited = []
     for address, info in client.scheduler_info()["workers"].items():
-        limit = info.get("memory_limit") or 0
-        limits[address] = int(limit) if limit else int(available_memory() or 0)
+        limit = int(info.get("memory_limit") or 0)
+        limits[address] = limit
+        if not limit:
+            unlimited.append(address)
+    if unlimited:
+        for address, free in client.run(available_memory, workers=unlimited).items():
+            limits[address] = int(free or 0)
     return limits
+
+
+def check_merge(points: int, transport: bool = False) -> None:
+    """ResourceError, before any work, if this machine cannot hold the merge: one row of every
+    point's records (16 B a point), with ``transport`` the spread's gains and mask (9 B a point,
+    :func:`~warpratchet.transport.diffusion.spread_moments`), and one summary's working memory."""
+    from .limits import check_memory
+
+    per_point = 16 + (9 if transport else 0)
+    summary = min(points, SUMMARY_CHUNK) * SUMMARY_BYTES_PER_POINT
+    check_memory(f"points = {points} (the merge of a sharded run)", per_point * points + summary,
+                 f"{per_point} B per point and {format_bytes(summary)} to summarise them")  # fmt: skip
 
 
 def _check_workers(client: Any, spec: RunSpec, bounds: list[tuple[int, int]], transport: bool) -> None:
@@ -516,6 +536,7 @@ def run_sharded(
             shards = max(1, len(client.scheduler_info()["workers"]))
         bounds = shard_bounds(points, min(check_count("shards", shards, 1, points), points))
         _check_workers(client, spec, bounds, transport)
+        check_merge(points, transport)
         if workdir is not None:
             workdir = _claim_workdir(workdir, spec, bounds, transport)
         start = time.perf_counter()
