@@ -117,12 +117,14 @@ def test_a_shard_that_does_not_fit_a_worker_is_refused_with_the_numbers(client):
     assert "at least 2" in str(err.value)
 
 
-def test_shards_draw_their_slice_of_the_ensembles_points():
+@pytest.mark.parametrize("init", ["strip", "torus", "grid"])
+def test_shards_draw_their_slice_of_the_ensembles_points(init):
     """A shard's records are the whole run's rows of its points (here without a cluster)."""
-    spec = RunSpec(K=3.0, b1=0.1, b2=0.01, points=50, steps=40, seed=9, threads=1, init="torus")
-    whole = run_shard(spec, 0, 50)
-    parts = [run_shard(spec, lo, hi) for lo, hi in shard_bounds(50, 3)]
-    assert [(r.lo, r.hi) for r in parts] == [(0, 16), (16, 33), (33, 50)]
+    spec = RunSpec(K=3.0, b1=0.1, b2=0.01, points=50, steps=40, seed=9, threads=1, init=init)
+    n = 49 if init == "grid" else 50  # a grid rounds down to a square
+    whole = run_shard(spec, 0, n)
+    parts = [run_shard(spec, lo, hi) for lo, hi in shard_bounds(n, 3)]
+    assert [(r.lo, r.hi) for r in parts] == shard_bounds(n, 3) and parts[-1].hi == n
     for name in ("gain", "stretch"):
         assert np.array_equal(np.concatenate([getattr(r, name) for r in parts], axis=1), getattr(whole, name))
 
@@ -321,6 +323,9 @@ def test_out_is_one_archive_of_the_whole_run(client, references, tmp_path):
     assert step == SPEC.steps and all(np.array_equal(state[k], v) for k, v in whole.state().items())
     assert verify_archive(out)[0] == []
     assert merged.points == SPEC.points
+    from warpratchet.cli import main
+
+    assert main(["inspect", str(out)]) == 0 and main(["verify", str(out)]) == 0
     with pytest.raises(ValueError, match="exists; choose a new path"):
         run_sharded(SPEC, client, 3, out=out)
 
