@@ -356,3 +356,13 @@ def test_a_merge_this_machine_cannot_hold_is_refused_with_the_numbers():
     check_merge(SPEC.points, transport=True)  # a few hundred kB
     with pytest.raises(ResourceError, match=r"points = 10000000000000 \(the merge of a sharded run\) needs"):
         check_merge(10**13)
+
+
+def test_run_with_scheduler_for_a_human(capsys, cluster):
+    from warpratchet.cli import main
+
+    address = cluster.scheduler_address
+    assert main(run_argv("--points", "300", "--steps", "200", "--scheduler", address, "--shards", "3")) == 0
+    out, err = capsys.readouterr()
+    assert "300 points x 200 steps" in out and f"  3 shards on the cluster at {address}\n" in out
+    assert f"connecting to the Dask scheduler at {address}" in err

@@ -483,6 +483,7 @@ def run_sharded(
     workdir: str | os.PathLike | None = None,
     checkpoint_every: int | None = None,
     out: str | os.PathLike | None = None,
+    progress: bool = False,
 ) -> ShardedRun:
     """Run the ensemble of ``spec`` as ``shards`` Dask tasks and merge them (module docstring).
 
@@ -508,6 +509,8 @@ def run_sharded(
         One archive of the whole run, written when it is merged (a new file; ``workdir``
         defaults to ``out`` + ``".shards"``): the merged series and history, and the shards'
         per-point data as virtual datasets over their archives (:mod:`warpratchet._cluster_archive`).
+    progress : bool
+        A progress bar over the shards done, on stderr.
 
     Raises
     ------
@@ -546,18 +549,31 @@ def run_sharded(
             )
             for k, (lo, hi) in enumerate(bounds)
         ]
-        records = []
+        import distributed
+
+        from .progress import ProgressBar
+
+        records: dict[int, ShardRecord] = {}
+        index = {future.key: k for k, future in enumerate(futures)}
+        bar = ProgressBar("shards", disable=not progress, unit="shard")
+        bar.open(len(bounds))
         try:
-            for k, (future, (lo, hi)) in enumerate(zip(futures, bounds, strict=True)):
+            # In the order they finish (a failure is reported at once), merged in shard order.
+            for future in distributed.as_completed(futures):
+                k = index[future.key]
                 try:
-                    records.append(future.result())
+                    records[k] = future.result()
                 except Exception as exc:
+                    lo, hi = bounds[k]
                     why = f"{type(exc).__name__}: {exc}"
                     raise RuntimeError(
                         f"shard {k} of {len(bounds)} (points {lo}..{hi - 1}) failed: {why}"
                     ) from exc
+                bar.advance()
         finally:
+            bar.close()
             client.cancel(futures)
+        records = [records[k] for k in range(len(bounds))]
         merged = ShardedRun(spec, records, transport)
         merged.seconds = time.perf_counter() - start
         if out is not None:

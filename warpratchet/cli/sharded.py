@@ -108,7 +108,7 @@ def command(args: argparse.Namespace, spec: RunSpec) -> int:
         start = time.perf_counter()
         merged = run_sharded(
             spec, client, args.shards, transport=args.transport, workdir=workdir, out=write,
-            checkpoint_every=args.checkpoint_every,
+            checkpoint_every=args.checkpoint_every, progress=not args.quiet,
         )  # fmt: skip
         seconds = time.perf_counter() - start
     report = run_report(merged, seconds, spec.steps, spec.threshold, spec.threshold_rule)
@@ -122,6 +122,11 @@ def command(args: argparse.Namespace, spec: RunSpec) -> int:
     if out is not None:
         report["archive"] = out
     print_report(report, args.json)
+    if not args.json:
+        print(
+            f"  {merged.shards} shards on the cluster at {args.scheduler}"
+            + (f", archive {out}" if out else "")
+        )
     return 0
 
 
