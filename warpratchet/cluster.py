@@ -29,9 +29,11 @@ machine, for any number of shards:
 * **No lockstep.** Shards never wait for each other: each runs to the end and hands back its
   records; the merge starts when all are in.
 
-Cost: a record is 16 bytes per point per row (about 40 rows at n = 120000), held by the worker
-until the merge; the merge reads one row of every shard at a time (16 bytes per point of the
-whole ensemble). ``benchmarks/cluster_scaling.py`` measures it.
+Cost: a record is 16 bytes per point per row (about 40 rows at n = 120000). Without a workdir
+the worker holds them until the merge and Dask moves them to the client; with one (storage every
+worker and the client share) each row is a file, written as the shard passes its step and read
+by the merge, and a shard's memory is its state and one row. The merge holds one row of every
+shard at a time (16 bytes per point of the whole ensemble). ``benchmarks/cluster_scaling.py`` measures it.
 """
 
 from __future__ import annotations
@@ -86,10 +88,11 @@ def _kind(transport: bool):
     return Ensemble
 
 
-def shard_bytes(spec: RunSpec, points: int, transport: bool = False) -> int:
+def shard_bytes(spec: RunSpec, points: int, transport: bool = False, on_disk: bool = False) -> int:
     """Memory a shard of ``points`` points needs on its worker: the state (and transport's
-    carry), one summary's working memory, and its records (16 B per point per history row)."""
-    rows = len(history_steps(0, spec.steps))
+    carry), one summary's working memory, and its records: 16 B per point per history row, or
+    with ``on_disk`` (records in a workdir) one row of them."""
+    rows = 1 if on_disk else len(history_steps(0, spec.steps))
     state = _kind(transport).bytes_per_point()
     return points * (state + 16 * rows) + min(points, SUMMARY_CHUNK) * SUMMARY_BYTES_PER_POINT
 
@@ -99,7 +102,9 @@ class ShardRecord:
     """What one shard hands back: its points ``lo <= i < hi`` at the run's common steps.
 
     ``gain`` and ``stretch``: shape ``(rows, hi - lo)``, the gain ``p_n - p_0``
-    (:func:`~warpratchet.observables.momentum_gain`) and ``log|DM^n v0|`` at each of ``steps``;
+    (:func:`~warpratchet.observables.momentum_gain`) and ``log|DM^n v0|`` at each of ``steps``,
+    or None when they are in the files of ``folder`` (a shard with a workdir): :meth:`row` reads
+    either;
     ``block_*``: the block subsample's points in this shard (History's ``block_gain`` and
     ``block_ftle`` at ``block_steps``); ``counts`` and ``open_counts``: the ``(3, BINS)``
     completed and still-open runs of a transport run (None otherwise).
@@ -116,6 +121,19 @@ class ShardRecord:
     counts: np.ndarray | None
     open_counts: np.ndarray | None
     seconds: float
+    folder: str | None = None
+
+    def row(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """``(gain, stretch)`` of this shard's points at ``steps[k]``."""
+        if self.folder is None:
+            return self.gain[k], self.stretch[k]
+        with np.load(_step_path(self.folder, int(self.steps[k]))) as saved:
+            return saved["gain"], saved["stretch"]
+
+
+def _step_path(folder: str, step: int) -> str:
+    """The file of a shard's records at ``step``."""
+    return os.path.join(folder, f"step-{step:012d}.npz")
 
 
 class _Recorder(Observer):
@@ -131,8 +149,10 @@ class _Recorder(Observer):
         self, steps: list[int], blocks: list[int], members: np.ndarray, points: int, folder: str | None = None
     ) -> None:
         self.steps, self.blocks, self.members, self.folder = steps, blocks, members, folder
-        self.gain = np.empty((len(steps), points))
-        self.stretch = np.empty((len(steps), points))
+        # with a folder the rows live on disk only: a shard's memory stays its state's
+        self.gain = self.stretch = None
+        if folder is None:
+            self.gain, self.stretch = np.empty((2, len(steps), points))
         self.block_gain = np.empty((len(blocks), members.size))
         self.block_ftle = np.empty((len(blocks), members.size))
 
@@ -145,10 +165,12 @@ class _Recorder(Observer):
         due = {}
         if step in self.steps:
             row = self.steps.index(step)
-            self.gain[row] = momentum_gain(views)
+            gain = momentum_gain(views)
             # lyapunov's numerator: the merge divides it by n, as lyapunov does
-            self.stretch[row] = views["log_stretch"] + np.log(np.hypot(views["dx"], views["dp"]))
-            due.update(gain=self.gain[row], stretch=self.stretch[row])
+            stretch = views["log_stretch"] + np.log(np.hypot(views["dx"], views["dp"]))
+            if self.folder is None:
+                self.gain[row], self.stretch[row] = gain, stretch
+            due.update(gain=gain, stretch=stretch)
         if step in self.blocks:
             row = self.blocks.index(step)
             sub = {name: values[self.members] for name, values in views.items()}
@@ -158,13 +180,10 @@ class _Recorder(Observer):
         if due and self.folder is not None:
             self._save(step, due)
 
-    def _path(self, step: int) -> str:
-        return os.path.join(self.folder, f"step-{step:012d}.npz")
-
     def _save(self, step: int, arrays: dict[str, np.ndarray]) -> None:
         from ._files import publish, temporary_beside
 
-        path = self._path(step)
+        path = _step_path(self.folder, step)
         with temporary_beside(path) as tmp:
             with open(tmp, "wb") as f:
                 np.savez(f, **arrays)
@@ -173,14 +192,12 @@ class _Recorder(Observer):
             publish(tmp, path, replace=True)
 
     def load(self, step: int) -> None:
-        """The records of every step up to ``step`` from :attr:`folder` (a retried shard's)."""
-        for n in sorted({*self.steps, *self.blocks}):
+        """The block records of every step up to ``step`` from :attr:`folder` (a retried shard's;
+        its rows stay there)."""
+        for n in self.blocks:
             if n > step:
                 break
-            with np.load(self._path(n)) as saved:
-                if n in self.steps:
-                    row = self.steps.index(n)
-                    self.gain[row], self.stretch[row] = saved["gain"], saved["stretch"]
+            with np.load(_step_path(self.folder, n)) as saved:
                 if n in self.blocks:
                     row = self.blocks.index(n)
                     self.block_gain[row], self.block_ftle[row] = saved["block_gain"], saved["block_ftle"]
@@ -267,7 +284,7 @@ def run_shard(
     return ShardRecord(
         lo, hi, np.array(recorder.steps, dtype=np.int64), recorder.gain, recorder.stretch,
         np.array(recorder.blocks, dtype=np.int64), recorder.block_gain, recorder.block_ftle,
-        counts, open_counts, seconds,
+        counts, open_counts, seconds, folder,
     )  # fmt: skip
 
 
@@ -327,10 +344,9 @@ class ShardedRun:
 
     def _state(self, step: int) -> dict[str, np.ndarray]:
         """Every point's record at ``step``, in global order."""
-        row = self._steps.index(step)
-        gain = np.concatenate([r.gain[row] for r in self._records])
-        stretch = np.concatenate([r.stretch[row] for r in self._records])
-        return _point_state(gain, stretch)
+        k = self._steps.index(step)
+        rows = [r.row(k) for r in self._records]
+        return _point_state(np.concatenate([g for g, _ in rows]), np.concatenate([s for _, s in rows]))
 
     def _history(self) -> History:
         spec = self.spec
@@ -430,16 +446,18 @@ def check_merge(points: int, transport: bool = False) -> None:
                  f"{per_point} B per point and {format_bytes(summary)} to summarise them")  # fmt: skip
 
 
-def _check_workers(client: Any, spec: RunSpec, bounds: list[tuple[int, int]], transport: bool) -> None:
+def _check_workers(
+    client: Any, spec: RunSpec, bounds: list[tuple[int, int]], transport: bool, on_disk: bool
+) -> None:
     """ResourceError, before any work, if the largest shard does not fit the smallest worker."""
     limits = _worker_memory(client)
     if not limits:
         raise ResourceError("the Dask cluster has no workers; start some (docs/cluster.md)")
     largest = max(hi - lo for lo, hi in bounds)
-    needed = shard_bytes(spec, largest, transport)
+    needed = shard_bytes(spec, largest, transport, on_disk)
     address, smallest = min(limits.items(), key=lambda item: item[1])
     if smallest and needed > smallest:
-        rows = len(history_steps(0, spec.steps))
+        rows = 1 if on_disk else len(history_steps(0, spec.steps))
         raise ResourceError(
             f"shards = {len(bounds)}: a shard of {largest} points needs {format_bytes(needed)} "
             f"({_kind(transport).bytes_per_point()} B of state and {16 * rows} B of records per point), "
@@ -538,7 +556,7 @@ def run_sharded(
         if shards is None:
             shards = max(1, len(client.scheduler_info()["workers"]))
         bounds = shard_bounds(points, min(check_count("shards", shards, 1, points), points))
-        _check_workers(client, spec, bounds, transport)
+        _check_workers(client, spec, bounds, transport, workdir is not None)
         check_merge(points, transport)
         if workdir is not None:
             workdir = _claim_workdir(workdir, spec, bounds, transport)
