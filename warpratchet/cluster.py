@@ -33,7 +33,8 @@ Cost: a record is 16 bytes per point per row (about 40 rows at n = 120000). With
 the worker holds them until the merge and Dask moves them to the client; with one (storage every
 worker and the client share) each row is a file, written as the shard passes its step and read
 by the merge, and a shard's memory is its state and one row. The merge holds one row of every
-shard at a time (16 bytes per point of the whole ensemble). ``benchmarks/cluster_scaling.py`` measures it.
+shard at a time (16 bytes per point of the whole ensemble); ``benchmarks/cluster_scaling.py``
+measures its time.
 """
 
 from __future__ import annotations
