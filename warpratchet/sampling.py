@@ -95,13 +95,17 @@ def sample_grid(n: int) -> tuple[np.ndarray, np.ndarray]:
 _BUILD_CHUNK = 1 << 18
 
 
-def sampled_chunks(params: MapParams, init: str, points: int, seed: int):
+def sampled_chunks(params: MapParams, init: str, points: int, seed: int, lo: int = 0, hi: int | None = None):
     """``(n, chunks)``: the ``n`` points of a named sampler as consecutive ``(lo, x, p)`` chunks.
 
     Bitwise the points of :func:`sample_strip`, :func:`sample_torus` (``default_rng(seed)``) and
     :func:`sample_grid`, without their full-size arrays: x takes the generator's first ``points``
     doubles and p the next ``points``, so p comes from a second generator advanced by ``points``
     draws (one 64-bit draw per double); grid nodes are looked up on their axes.
+
+    ``lo``, ``hi``: only points ``lo <= i < hi`` of the ``n`` (a shard of
+    :mod:`warpratchet.cluster`), each the same double as in the whole ensemble (both generators
+    advanced by ``lo`` more draws); chunks then start at ``i - lo``.
     """
     if init == "grid":
         side = math.isqrt(points)
@@ -110,10 +114,12 @@ def sampled_chunks(params: MapParams, init: str, points: int, seed: int):
         x_axis, p_axis = _grid_axes(side)
         n = side * side
 
+        end = n if hi is None else hi
+
         def grid():
-            for lo in range(0, n, _BUILD_CHUNK):
-                node = np.arange(lo, min(n, lo + _BUILD_CHUNK))
-                yield lo, x_axis[node % side], p_axis[node // side]
+            for start in range(lo, end, _BUILD_CHUNK):
+                node = np.arange(start, min(end, start + _BUILD_CHUNK))
+                yield start - lo, x_axis[node % side], p_axis[node // side]
 
         return n, grid()
     if init not in SAMPLERS:
@@ -122,12 +128,14 @@ def sampled_chunks(params: MapParams, init: str, points: int, seed: int):
         _strip_x(params, np.zeros(0))  # refuses a force without one strip interval, before any work
     rng_x = np.random.default_rng(seed)
     rng_p = np.random.default_rng(seed)
-    rng_p.bit_generator.advance(points)
+    rng_x.bit_generator.advance(lo)
+    rng_p.bit_generator.advance(points + lo)
+    end = points if hi is None else hi
 
     def uniform():
-        for lo in range(0, points, _BUILD_CHUNK):
-            u = rng_x.random(min(_BUILD_CHUNK, points - lo))
-            yield lo, (_strip_x(params, u) if init == "strip" else u), rng_p.random(u.size)
+        for start in range(lo, end, _BUILD_CHUNK):
+            u = rng_x.random(min(_BUILD_CHUNK, end - start))
+            yield start - lo, (_strip_x(params, u) if init == "strip" else u), rng_p.random(u.size)
 
     return points, uniform()
 

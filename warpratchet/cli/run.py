@@ -19,6 +19,7 @@ from typing import Any
 from ..params import map_text
 from ..spec import RunSpec
 from .common import Interrupted, ProgressBar, emit_json, print_warnings, spec_flags, spec_from_args
+from .sharded import add_cluster_flags, check_cluster_flags
 from .sinks import add_archive_flags, add_rerun_flags, archive_plan, rerun_sink
 
 #: The RunSpec settings ``run`` takes as flags: all but the classifier (``run`` reports the FTLE's
@@ -39,6 +40,7 @@ def add(sub) -> None:
     )
     add_archive_flags(p)
     add_rerun_flags(p)
+    add_cluster_flags(p)
 
 
 def run_report(
@@ -182,6 +184,10 @@ def command(args: argparse.Namespace) -> int:
     from ..history import History
 
     spec = spec_from_args(args)
+    if check_cluster_flags(args):
+        from . import sharded
+
+        return sharded.command(args, spec)
     plan = archive_plan(args, spec)  # bad archive flags fail before any work
     recorder = rerun_sink(args, spec)  # so do bad recording flags
     observers = [ProgressBar(disable=args.quiet)]

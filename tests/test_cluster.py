@@ -1,0 +1,362 @@
+"""One ensemble sharded across a Dask cluster (warpratchet.cluster): the single machine's numbers.
+
+The cluster is a LocalCluster of two worker processes on loopback, each with a memory limit below
+what the whole ensemble's shard would need (the Nanny's own memory actions are switched off, so
+the limit is the number the run checks against, not a reason to kill a worker).
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+
+import numpy as np
+import pytest
+from support import bits, refused, run_argv, same_history
+
+from warpratchet.cluster import ShardedRun, run_shard, run_sharded, shard_bounds, shard_bytes
+from warpratchet.ensemble import Ensemble
+from warpratchet.errors import ResourceError
+from warpratchet.history import History
+from warpratchet.runloop import Observer
+from warpratchet.spec import RunSpec
+from warpratchet.transport import TransportEnsemble
+
+distributed = pytest.importorskip("distributed")
+
+SPEC = RunSpec(K=3.0, b1=0.1, b2=0.01, points=2000, steps=3000, seed=3, threads=1, chunk_steps=500)
+#: Below one shard of the whole ensemble, above a shard of half of it.
+MEMORY_LIMIT = (shard_bytes(SPEC, SPEC.points // 2) + shard_bytes(SPEC, SPEC.points)) // 2
+
+
+def exact(value):
+    """A report's value in a form that compares bit for bit (floats by their bits, NaN included)."""
+    if isinstance(value, dict):
+        return {k: exact(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [exact(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return (value.dtype.str, value.shape, value.tobytes())
+    return bits(value)
+
+
+def single_machine(transport: bool) -> tuple[dict, History, dict | None]:
+    """The run on one machine, as ``warpratchet run`` makes it: summary, history, transport report."""
+    kind = TransportEnsemble if transport else Ensemble
+    ensemble = kind.sample(SPEC.params, SPEC.points, SPEC.init, SPEC.seed, threads=2)
+    ensemble.threshold, ensemble.threshold_rule = SPEC.threshold, SPEC.threshold_rule
+    history = History(SPEC.threshold, SPEC.threshold_rule)
+    ensemble.run(SPEC.steps, [history], chunk_steps=SPEC.chunk_steps)
+    summary = ensemble.summary(SPEC.threshold, SPEC.threshold_rule, warn=False).as_dict()
+    return summary, history, ensemble.report() if transport else None
+
+
+@pytest.fixture(scope="module")
+def references():
+    return {transport: single_machine(transport) for transport in (False, True)}
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    import dask
+
+    quiet = {f"distributed.worker.memory.{k}": False for k in ("target", "spill", "pause", "terminate")}
+    with (
+        dask.config.set(quiet),
+        distributed.LocalCluster(
+            n_workers=2, processes=True, threads_per_worker=1, memory_limit=MEMORY_LIMIT,
+            host="127.0.0.1", dashboard_address=None,
+        ) as cluster,
+    ):  # fmt: skip
+        yield cluster
+
+
+@pytest.fixture(scope="module")
+def client(cluster):
+    with distributed.Client(cluster) as client:
+        yield client
+
+
+def check_merged(merged: ShardedRun, reference: tuple, transport: bool) -> None:
+    summary, history, report = reference
+    assert exact(merged.summary(SPEC.threshold, SPEC.threshold_rule, warn=False).as_dict()) == exact(summary)
+    assert same_history(merged.history, history)
+    assert exact(merged.history.as_dict()) == exact(history.as_dict())
+    assert exact(merged.history.convergence().__dict__) == exact(history.convergence().__dict__)
+    if transport:
+        assert exact(merged.report()) == exact(report)
+
+
+def test_the_memory_limit_is_below_the_whole_ensemble():
+    assert shard_bytes(SPEC, SPEC.points) > MEMORY_LIMIT >= shard_bytes(SPEC, -(-SPEC.points // 2))
+
+
+@pytest.mark.parametrize("transport", [False, True])
+@pytest.mark.parametrize("shards", [2, 3, 7])
+def test_sharded_run_equals_the_single_machine_bit_for_bit(client, references, shards, transport):
+    merged = run_sharded(SPEC, client, shards, transport=transport)
+    assert merged.shards == shards and merged.points == SPEC.points
+    check_merged(merged, references[transport], transport)
+
+
+@pytest.mark.parametrize("transport", [False, True])
+def test_one_shard_equals_the_single_machine_bit_for_bit(references, transport):
+    # one shard holds the whole ensemble: a worker of its own, in this process, without a limit
+    with (
+        distributed.LocalCluster(n_workers=1, processes=False, dashboard_address=":0") as whole,
+        distributed.Client(whole) as client,
+    ):
+        check_merged(run_sharded(SPEC, client, 1, transport=transport), references[transport], transport)
+
+
+def test_a_shard_that_does_not_fit_a_worker_is_refused_with_the_numbers(client):
+    with pytest.raises(
+        ResourceError, match=r"shards = 1: a shard of 2000 points needs .* memory limit of"
+    ) as err:
+        run_sharded(SPEC, client, 1)
+    assert "at least 2" in str(err.value)
+
+
+@pytest.mark.parametrize("init", ["strip", "torus", "grid"])
+def test_shards_draw_their_slice_of_the_ensembles_points(init):
+    """A shard's records are the whole run's rows of its points (here without a cluster)."""
+    spec = RunSpec(K=3.0, b1=0.1, b2=0.01, points=50, steps=40, seed=9, threads=1, init=init)
+    n = 49 if init == "grid" else 50  # a grid rounds down to a square
+    whole = run_shard(spec, 0, n)
+    parts = [run_shard(spec, lo, hi) for lo, hi in shard_bounds(n, 3)]
+    assert [(r.lo, r.hi) for r in parts] == shard_bounds(n, 3) and parts[-1].hi == n
+    for name in ("gain", "stretch"):
+        assert np.array_equal(np.concatenate([getattr(r, name) for r in parts], axis=1), getattr(whole, name))
+
+
+class StopsAt(Observer):
+    """Fails the run at its first regular chunk end at or after ``step``; notes where runs begin."""
+
+    def __init__(self, step: int) -> None:
+        self.step = step
+        self.began: list[int] = []
+
+    def begin(self, ensemble, target_step):
+        self.began.append(ensemble.step)
+
+    def after_chunk(self, ensemble, seconds):
+        if ensemble.step >= self.step:
+            raise RuntimeError(f"stopped at step {ensemble.step}")
+
+
+@pytest.mark.parametrize("transport", [False, True])
+def test_a_shard_continues_from_its_archive_bit_for_bit(tmp_path, transport):
+    """A shard stopped after a checkpoint and run again equals one that ran through (no cluster)."""
+    whole = run_shard(SPEC, 500, 1300, transport)
+    with pytest.raises(RuntimeError, match="stopped at step 1500"):
+        run_shard(SPEC, 500, 1300, transport, [StopsAt(1500)], tmp_path, 1, checkpoint_every=500)
+    notes = StopsAt(SPEC.steps + 1)
+    again = run_shard(SPEC, 500, 1300, transport, [notes], tmp_path, 1, checkpoint_every=500)
+    assert notes.began == [1500]  # from the checkpoint, not from step 0
+    assert again.gain is None and again.folder is not None  # its rows are on disk only
+    for name in ("steps", "block_steps", "block_gain", "block_ftle", "counts", "open_counts"):
+        assert exact(getattr(again, name)) == exact(getattr(whole, name)), name
+    for k in range(len(whole.steps)):
+        assert exact(list(again.row(k))) == exact(list(whole.row(k)))
+
+
+class Fails(Observer):
+    """Makes every shard fail after its first chunk."""
+
+    def after_chunk(self, ensemble, seconds):
+        raise ValueError(f"no luck at step {ensemble.step}")
+
+
+def test_a_shard_that_fails_fails_the_run_with_its_reason(client):
+    with pytest.raises(RuntimeError, match=r"shard 0 of 2 \(points 0\.\.999\) failed: ValueError: no luck"):
+        run_sharded(SPEC, client, 2, observers=[Fails()])
+
+
+class HoldsOnce(Observer):
+    """Holds the first shard that passes its checkpoint at step 1000 until the test has killed its
+    worker; the retry notes the step it starts from.
+
+    Events, not sleeps: the shard tells the test its process id and that it is mid-run, then
+    waits for "go", which the test sets once the worker is dead (the retry, which sees "killed",
+    runs through).
+    """
+
+    def __init__(self) -> None:
+        self.held = False
+
+    def begin(self, ensemble, target_step):
+        if distributed.Event("i28-killed").is_set() and ensemble.step > 0:
+            distributed.Variable("i28-resumed-at").set(ensemble.step)
+
+    def after_chunk(self, ensemble, seconds):
+        if self.held or ensemble.step < 1000:
+            return
+        self.held = True
+        if distributed.Event("i28-killed").is_set():
+            return
+        if not distributed.Lock("i28-first").acquire(blocking=False):
+            return  # another shard is the one held
+        distributed.Variable("i28-pid").set(os.getpid())
+        distributed.Event("i28-reached").set()
+        distributed.Event("i28-go").wait()
+
+
+def test_a_worker_killed_mid_run_is_retried_from_its_checkpoint_with_the_result_unchanged(
+    client, references, tmp_path
+):
+    from concurrent.futures import ThreadPoolExecutor
+
+    work = tmp_path / "shards"
+    with ThreadPoolExecutor(1) as pool:
+        future = pool.submit(
+            run_sharded, SPEC, client, 2, observers=[HoldsOnce()], workdir=work, checkpoint_every=500
+        )
+        try:
+            assert distributed.Event("i28-reached", client=client).wait(timeout=600)
+            pid = distributed.Variable("i28-pid", client=client).get(timeout=60)
+            os.kill(pid, signal.SIGKILL)
+            distributed.Event("i28-killed", client=client).set()
+        finally:
+            distributed.Event("i28-go", client=client).set()
+        merged = future.result(timeout=600)
+    assert pid not in client.run(os.getpid).values()  # the held shard's worker did die
+    assert distributed.Variable("i28-resumed-at", client=client).get(timeout=60) == 1000
+    check_merged(merged, references[False], False)
+    # the same call again finds every shard complete in its archive: nothing runs, same numbers
+    check_merged(run_sharded(SPEC, client, 2, workdir=work), references[False], False)
+
+
+# -- the command line ---------------------------------------------------------------------------------
+def run_json(capsys, *flags: str) -> dict:
+    import json
+
+    from warpratchet.cli import main
+
+    size = ["--points", str(SPEC.points), "--steps", str(SPEC.steps), "--seed", str(SPEC.seed)]
+    code = main(run_argv(*size, "--threads", "1", "--json", "--quiet", *flags))
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    return json.loads(out)
+
+
+@pytest.mark.parametrize("transport", [False, True])
+def test_run_with_scheduler_prints_the_single_machine_numbers(capsys, cluster, tmp_path, transport):
+    extra = ["--transport"] if transport else []
+    here = run_json(capsys, *extra)
+    work = str(tmp_path / "shards")
+    there = run_json(
+        capsys, "--scheduler", cluster.scheduler_address, "--shards", "3", "--workdir", work, *extra
+    )
+    assert there.pop("shards") == 3 and there.pop("scheduler") == cluster.scheduler_address
+    assert there.pop("workdir") == work and sorted(os.listdir(work))[:2] == ["run.json", "shard-0000.h5"]
+    # each shard's archive is an ordinary one: it verifies, and holds its points at the last step
+    from warpratchet import open_archive
+    from warpratchet.archive.verify import verify_archive
+
+    assert verify_archive(os.path.join(work, "shard-0002.h5"))[0] == []
+    with open_archive(os.path.join(work, "shard-0002.h5")) as arc:
+        assert (arc.points, arc.checkpoint_step) == (SPEC.points - 2 * SPEC.points // 3, SPEC.steps)
+    timing = ("seconds", "point_steps_per_second")
+    assert {k: v for k, v in there.items() if k not in timing} == {
+        k: v for k, v in here.items() if k not in timing
+    }
+
+
+@pytest.mark.parametrize(
+    "flags, message",
+    [
+        (["--shards", "2"], "--shards needs --scheduler ADDRESS"),
+        (["--workdir", "w"], "--workdir needs --scheduler ADDRESS"),
+        (["--scheduler", "tcp://127.0.0.1:1", "--snapshot-every", "5"], "--snapshot-every does not go with"),
+        (["--scheduler", "tcp://127.0.0.1:1", "--shards", "0"], "shards = 0 is outside the allowed range"),
+    ],
+)
+def test_run_refuses_cluster_flags_it_cannot_honour(capsys, tmp_path, flags, message):
+    assert message in refused(capsys, run_argv("--points", "100", "--steps", "10", *flags))
+
+
+def test_a_workdir_of_another_run_is_refused(client, tmp_path):
+    other = RunSpec(K=3.0, b1=0.1, b2=0.01, points=100, steps=50, seed=4, threads=1)
+    run_sharded(other, client, 2, workdir=tmp_path)
+    with pytest.raises(ValueError, match=r"holds the shards of another run \(it differs in seed\)"):
+        run_sharded(RunSpec(**{**other.as_dict(), "seed": 5}), client, 2, workdir=tmp_path)
+
+
+def test_the_benchmark_runs_and_its_runs_are_identical():
+    from support import quick_benchmark
+
+    report = quick_benchmark("cluster_scaling.py")
+    assert report["identical"] and [r["workers"] for r in report["rows"]] == [None, 1, 2]
+    assert [m["shards"] for m in report["merge"]] == [1, 4, 16, 64, 256, 1024]
+    assert set(report["merge_projected_seconds"]) == {"100", "1000"}
+
+
+# -- one archive of the whole run ------------------------------------------------------------------------
+def test_out_is_one_archive_of_the_whole_run(client, references, tmp_path):
+    from warpratchet import open_archive
+    from warpratchet.archive.verify import verify_archive
+
+    out = tmp_path / "run.h5"
+    merged = run_sharded(SPEC, client, 3, out=out)
+    summary, history, _ = references[False]
+    with open_archive(out) as arc:
+        assert (arc.points, arc.checkpoint_step, arc.target_step) == (SPEC.points, SPEC.steps, SPEC.steps)
+        assert same_history(arc.history, history)
+        series = arc.series
+        assert list(series["step"]) == history.rows["step"]
+        assert exact(float(series["A"][-1])) == exact(summary["A"])
+        assert exact(float(series["A_stderr"][-1])) == exact(summary["A_stderr"])
+        state, step = arc.checkpoint()
+        initial = arc.initial
+        ds = arc.to_xarray()
+    assert ds.sizes["step"] == len(history.rows["step"])
+    # the per-point data are the shards' own, through virtual datasets, in global order
+    whole = Ensemble.sample(SPEC.params, SPEC.points, SPEC.init, SPEC.seed, threads=2)
+    assert all(np.array_equal(initial[k], v) for k, v in whole.state().items())
+    whole.run(SPEC.steps)
+    assert step == SPEC.steps and all(np.array_equal(state[k], v) for k, v in whole.state().items())
+    assert verify_archive(out)[0] == []
+    assert merged.points == SPEC.points
+    from warpratchet.cli import main
+
+    assert main(["inspect", str(out)]) == 0 and main(["verify", str(out)]) == 0
+    with pytest.raises(ValueError, match="exists; choose a new path"):
+        run_sharded(SPEC, client, 3, out=out)
+
+
+def test_run_with_scheduler_and_out_the_same_command_again_reports_it(capsys, cluster, tmp_path, references):
+    from warpratchet import open_archive
+
+    out = str(tmp_path / "run.h5")
+    flags = ("--scheduler", cluster.scheduler_address, "--shards", "2", "--out", out)
+    first = run_json(capsys, *flags)
+    assert first["archive"] == out and first["workdir"] == out + ".shards"
+    with open_archive(out) as arc:
+        assert same_history(arc.history, references[False][1])
+    stamp = os.stat(out).st_mtime_ns
+    again = run_json(capsys, *flags)
+    timing = ("seconds", "point_steps_per_second")
+    assert {k: v for k, v in again.items() if k not in timing} == {
+        k: v for k, v in first.items() if k not in timing
+    }
+    assert os.stat(out).st_mtime_ns == stamp  # reported, not rewritten
+    other = run_argv("--points", "100", "--steps", "10", *flags)
+    assert "exists and is not an archive of this run" in refused(capsys, other)
+
+
+def test_a_merge_this_machine_cannot_hold_is_refused_with_the_numbers():
+    from warpratchet.cluster import check_merge
+
+    check_merge(SPEC.points, transport=True)  # a few hundred kB
+    with pytest.raises(ResourceError, match=r"points = 10000000000000 \(the merge of a sharded run\) needs"):
+        check_merge(10**13)
+
+
+def test_run_with_scheduler_for_a_human(capsys, cluster):
+    from warpratchet.cli import main
+
+    address = cluster.scheduler_address
+    assert main(run_argv("--points", "300", "--steps", "200", "--scheduler", address, "--shards", "3")) == 0
+    out, err = capsys.readouterr()
+    assert "300 points x 200 steps" in out and f"  3 shards on the cluster at {address}\n" in out
+    assert f"connecting to the Dask scheduler at {address}" in err

@@ -1,0 +1,115 @@
+"""One archive of a sharded run: the merged rows, and the shards' per-point data as virtual datasets.
+
+:func:`write_merged` writes ``out``, an ordinary archive (``docs/archive.md``: ``open_archive``,
+``inspect``, ``verify`` and ``to_xarray`` read it) of the whole ensemble of a
+:func:`warpratchet.cluster.run_sharded` run whose shards kept their archives in a ``workdir``:
+
+* ``/series`` holds one row at each history step (the steps every shard recorded), the merged
+  summary there, bit for bit the single machine's row at that step; ``/history`` the merged
+  history;
+* ``/initial`` and the checkpoint (slot ``a``, at the last step) are HDF5 virtual datasets: each
+  field the concatenation, in global point order, of the same field of the shards' archives
+  (their initial state, and the slot their last checkpoint is in). Nothing per point is copied;
+  the shards' files must stay where they are, and their paths are stored relative to ``out``'s
+  folder, so the two move together.
+"""
+
+from __future__ import annotations
+
+import datetime
+import os
+import time
+from typing import Any
+
+import h5py
+import numpy as np
+
+from ._h5 import sync_h5
+from .archive import layout
+from .archive.building import build_file
+from .archive.history_group import write_history
+from .archive.names import COUNTERS, FORMAT_VERSION, SERIES_FIELDS, SLOTS, describe
+from .archive.rows import fill_rows, set_counter
+from .ensemble import STATE_FIELDS
+
+__all__ = ["write_merged"]
+
+
+def _virtual(
+    group: h5py.Group, name: str, sources: list[tuple[str, str, int, int]], fill: float | int
+) -> None:
+    """Replace ``group[name]`` by a virtual dataset over ``sources``: ``(file, dataset, lo, hi)``."""
+    dtype = np.int64 if name == "winding" else np.float64
+    points = sources[-1][3]
+    virtual = h5py.VirtualLayout(shape=(points,), dtype=dtype)
+    for path, dataset, lo, hi in sources:
+        virtual[lo:hi] = h5py.VirtualSource(path, dataset, shape=(hi - lo,))
+    del group[name]
+    ds = group.create_virtual_dataset(name, virtual, fillvalue=dtype(fill))
+    units, long_name = describe(group.name.lstrip("/"), name)
+    ds.attrs["units"], ds.attrs["long_name"] = np.bytes_(units.encode()), np.bytes_(long_name.encode())
+
+
+def _current_slot(path: str) -> str:
+    """The slot of a shard archive's last checkpoint."""
+    with h5py.File(path, "r") as f:
+        return SLOTS[int(f["checkpoint"]["current"][0])]
+
+
+def write_merged(out: str | os.PathLike, merged: Any, workdir: str, bounds: list[tuple[int, int]]) -> None:
+    """Write ``out`` (a new file) for ``merged`` (a :class:`~warpratchet.cluster.ShardedRun`) whose
+    shards' archives are in ``workdir`` (module docstring)."""
+    from .cluster import shard_paths
+
+    out = os.fspath(out)
+    folder = os.path.dirname(os.path.abspath(out))
+    archives = [shard_paths(workdir, k)[0] for k in range(len(bounds))]
+    relative = [os.path.relpath(path, folder) for path in archives]
+    spec = merged.spec
+    settings = layout.run_settings(
+        merged, threshold=spec.threshold, threshold_rule=spec.threshold_rule,
+        chunk_steps=spec.chunk_steps or spec.steps, checkpoint_every=spec.steps, snapshot_every=0,
+        snapshot_points=0,
+    )  # fmt: skip
+    fills = {name: np.broadcast_to(layout.FILL[name], (merged.points,)) for name in STATE_FIELDS}
+    contents = {
+        "params": merged.params,
+        "settings": settings,
+        "versions": layout.software_versions(),
+        "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+        "initial": fills,  # every field its fill value: nothing is written, the virtual data follows
+        "initial_step": 0,
+        "indices": np.empty(0, dtype=np.int64),
+        "target_step": merged.step,
+        "history": merged.history,
+    }
+    slots = [_current_slot(path) for path in archives]
+
+    def fill(f: h5py.File) -> None:
+        for name in STATE_FIELDS:
+            sources = [
+                (rel, f"/initial/{name}", lo, hi) for rel, (lo, hi) in zip(relative, bounds, strict=True)
+            ]
+            _virtual(f["initial"], name, sources, layout.FILL[name])
+            sources = [
+                (rel, f"/checkpoint/{slot}/{name}", lo, hi)
+                for rel, slot, (lo, hi) in zip(relative, slots, bounds, strict=True)
+            ]
+            _virtual(f["checkpoint"][SLOTS[0]], name, sources, 0)
+        rows = [merged.summary(spec.threshold, spec.threshold_rule, warn=False, step=n).as_dict()
+                for n in merged.history.rows["step"]]  # fmt: skip
+        clocks = {"wall_time": np.nan, "unix_time": time.time()}
+        series = {name: [clocks.get(name, row.get(name)) for row in rows] for name in SERIES_FIELDS}
+        fill_rows(f["series"], series, f[COUNTERS[FORMAT_VERSION]["series"]])
+        write_history(f, merged.history)
+        set_counter(f["checkpoint"][SLOTS[0]]["step"], merged.step)
+        set_counter(f["checkpoint"]["current"], 0)
+
+    opened: list[h5py.File] = []
+
+    def start(f: h5py.File) -> None:
+        sync_h5(f)  # durable before the file gets its name
+        opened.append(f)
+
+    build_file(out, contents, start, replace=False, fill=fill)
+    opened[0].close()
