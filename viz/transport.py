@@ -116,6 +116,7 @@ def distributions(plt, report: dict[str, Any], title: str):
                     xo[yo > 0], yo[yo > 0], "o", mfc="none", color=color, ms=5, label="still open at the end"
                 )
             _fitted(ax, fit, total, color)
+        _powers_of_two(ax)
         ax.set_xlabel("length L (steps)")
         ax.set_ylabel("P(L) per unit length")
         ax.set_title(name, fontsize=10)
@@ -123,6 +124,20 @@ def distributions(plt, report: dict[str, Any], title: str):
     fig.suptitle(f"{title}; diffusion exponent {mu_label(report)}", fontsize=9)
     fig.tight_layout()
     return fig
+
+
+def _powers_of_two(ax) -> None:
+    """Length ticks at the log2 bins' edges, written as plain numbers (1, 2, 4, ...): matplotlib's
+    log axis would label a range under a decade with minor ticks such as ``2 x 10^0``."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter, NullLocator
+
+    lo, hi = ax.get_xlim()
+    powers = [2.0**k for k in range(0, 64) if lo <= 2.0**k <= hi]
+    step = max(1, math.ceil(len(powers) / 8))  # at most ~8 labels
+    ax.xaxis.set_major_locator(FixedLocator(powers[::step]))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:.0f}"))
+    ax.xaxis.set_minor_locator(NullLocator())
+    ax.xaxis.set_minor_formatter(NullFormatter())
 
 
 def mu_label(report: dict) -> str:
