@@ -167,29 +167,34 @@ def _background(params: MapParams, points: int, steps: int, pixels: int) -> np.n
 
 def portrait(plt, params: MapParams, periods: Sequence[int], background: int = 2000):
     """The figure of :func:`main`'s ``--orbits`` form (returns the matplotlib figure)."""
-    from matplotlib.patches import Polygon
+    from matplotlib.patches import Polygon, Rectangle
 
     from warpratchet.orbits import enumerate_orbits
 
-    fig, ax = plt.subplots(figsize=(6.0, 6.4))
+    fig, ax = plt.subplots(figsize=(6.0, 7.4))
+    steps = 300
     if background:
-        image = _background(params, background, 300, 400)
+        image = _background(params, background, steps, 400)
         ax.imshow(
             image, origin="lower", extent=(0, 1, 0, 1), cmap="Greys", vmin=0, vmax=3, interpolation="nearest"
         )
+        # The grey pixels in the legend: what they are, not only that they are there.
+        sea = f"grey: the chaotic sea ({background} orbits from B, {steps} steps)"
+        ax.add_patch(Rectangle((0, 0), 0, 0, fc=plt.get_cmap("Greys")(1 / 3), lw=0, label=sea))
     seen = set()
     for period in periods:
         result = enumerate_orbits(params, period)
         for family in result.families:
             v = family.vertices
-            label = "families (polygons, segments)" if "family" not in seen else None
-            seen.add("family")
             if family.shape == "polygon":
+                label = None if "polygon" in seen else "cyan areas: periodic points with DM^m = I"
                 ax.add_patch(
                     Polygon(v, closed=True, fc="tab:cyan", ec="tab:blue", alpha=0.5, lw=0.5, label=label)
                 )
             else:
+                label = None if "segment" in seen else "blue segments: periodic points with DM^m = I"
                 ax.plot(v[:, 0], v[:, 1], color="tab:blue", lw=1.0, label=label)
+            seen.add(family.shape if family.shape == "polygon" else "segment")
         for orbit in result.orbits:
             style = KIND_STYLE[orbit.kind]
             label = orbit.kind if orbit.kind not in seen else None
@@ -206,7 +211,8 @@ def portrait(plt, params: MapParams, periods: Sequence[int], background: int = 2
     ax.set_title(
         f"periodic orbits of period {shown}: K = {params.K}, b1 = {params.b1}, b2 = {params.b2}", fontsize=9
     )
-    ax.legend(fontsize=7, loc="upper right")
+    # Below the torus, not over it: the legend must not hide orbits.
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=1, frameon=False)
     fig.tight_layout()
     return fig
 
