@@ -129,3 +129,28 @@ def test_shrink_is_what_the_docstring_says():
         shrink("python -m viz history drift.h5 -o h.png")
         == "python -m warpratchet_viz history drift.h5 -o h.png"
     )
+
+
+#: A duration in prose: "about 2 s", "4-6 minutes", "well under one".
+DURATION = re.compile(
+    r"(?:~|about |\b)\d+(?:[.,-]\d+)*\s*(?:s|ms|min|minutes|seconds|hours?)\b"
+    r"|\ba minute\b|under (?:a minute|one)\b"
+)
+
+
+def test_readme_timings_name_their_machine():
+    """A time in the README is a measurement on one machine: it says which, close by (the rerun
+    viewer's playback time excepted, which is the viewer's, not a measurement)."""
+    text = (ROOT / "README.md").read_text()
+    bare = [
+        text[max(0, m.start() - 40) : m.end() + 40]
+        for m in DURATION.finditer(text)
+        if "machine" not in text[max(0, m.start() - 100) : m.end() + 100]
+        and "press play" not in text[m.start() - 40 : m.start()]
+    ]
+    assert bare == []
+
+
+def test_license_is_the_mit_license_pyproject_names():
+    assert (ROOT / "LICENSE").read_text().startswith("MIT License\n")
+    assert 'license = "MIT"' in (ROOT / "pyproject.toml").read_text()
