@@ -135,7 +135,7 @@ def emit_json(obj: dict[str, Any]) -> None:
 _KIND_NAMES = {int: "integer", float: "float", str: "string"}
 
 
-def integer(text: str) -> int:
+def _integer(text: str) -> int:
     """A count from the command line: ``100000``, or an integral value in scientific notation
     (``1e5``, ``2.5e6``); ``1.5`` or ``1e-3`` is a ValueError (a count is a whole number)."""
     try:
@@ -157,7 +157,7 @@ def _typed(kind: type, check, message: str | None = None) -> Any:
 
     def parse(text: str):
         try:
-            value = integer(text) if kind is int else kind(text)
+            value = _integer(text) if kind is int else kind(text)
         except ValueError:
             whole = " (a whole number: 100000 or 1e5)" if kind is int else ""
             raise argparse.ArgumentTypeError(f"invalid {_KIND_NAMES[kind]} value: {text!r}{whole}") from None
