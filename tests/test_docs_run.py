@@ -109,6 +109,7 @@ def test_the_doc_runs_in_one_empty_folder(doc, tmp_path):
         argv = ["bash", "-euo", "pipefail", "-c", code] if kind == "bash" else [sys.executable, "-c", code]
         proc = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
         assert proc.returncode == 0, f"{doc}: {code}\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}"
+        assert kind == "bash" or proc.stdout.strip(), f"{doc}: a Python block prints nothing:\n{code}"
         ran += 1
     assert ran >= (25 if doc == "README.md" else 3), (ran, skipped)
 
