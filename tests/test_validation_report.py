@@ -25,7 +25,8 @@ def _row(b2: float, A: float, stderr: float, verdict: str = "converged") -> Chec
         "drift_z": 0.1,
         "verdict": verdict,
     }
-    return CheckedRow(row=row, theory=0.05, bias=BiasBound(window=0, offset=0.0, offset_stderr=0.0, bound=0.0))
+    bias = BiasBound(window=0, offset=0.0, offset_stderr=0.0, bound=0.0)
+    return CheckedRow(row=row, theory=0.05, bias=bias)
 
 
 def test_threshold_verdict():
