@@ -26,7 +26,7 @@ REFUSED = [
     ([*RUN, "--threads", "1000000000"], "--threads: threads = 1000000000 is outside"),
     ([*RUN, "--threshold", "nan"], "--threshold: threshold = nan is not finite"),
     ([*RUN, "--threshold", "-1"], "--threshold: threshold = -1.0 is outside"),
-    ([*RUN, "--points", "1e6"], "--points: invalid integer value: '1e6'"),
+    ([*RUN, "--points", "1.5"], "--points: invalid integer value: '1.5'"),
     ([*SUMRULE, "--grid", "4"], "not allowed with argument"),
     ([*SUMRULE, "--steps", "100"], "steps = 100"),
     (["sumrule", "--K", "5", "--b1", "0.1", "--b2", "0.01", "--points", "10"], "K = 5.0"),

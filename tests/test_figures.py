@@ -38,7 +38,7 @@ def quick_run(tmp_path_factory):
     validation = out / "validation.md"
     # An existing report with a census block: the generator must keep the block verbatim.
     validation.write_text(f"{report.GENERATED}\n\nold text\n\n{CENSUS}\n", encoding="utf-8")
-    assert report.main(["--sweeps", str(out / "sweeps"), "--out", str(validation)]) == 0
+    assert report.main(["--sweeps", str(out / "sweeps"), "--out", str(validation), "--overwrite"]) == 0
     return out, validation.read_text(encoding="utf-8")
 
 
@@ -188,9 +188,19 @@ def test_report_refuses_foreign_file(quick_run, tmp_path, capsys):
     out, _ = quick_run
     target = tmp_path / "validation.md"
     target.write_text("# my notes\n", encoding="utf-8")
-    assert report.main(["--sweeps", str(out / "sweeps"), "--out", str(target)]) == 2
+    assert report.main(["--sweeps", str(out / "sweeps"), "--out", str(target), "--overwrite"]) == 2
     assert "--force" in capsys.readouterr().err
     assert target.read_text(encoding="utf-8") == "# my notes\n"
+
+
+def test_report_replaces_an_existing_report_only_with_overwrite(tmp_path, capsys):
+    """A quick run must not silently replace the committed docs/validation.md."""
+    target = tmp_path / "validation.md"
+    target.write_text(f"{report.GENERATED}\n\nthe committed report\n", encoding="utf-8")
+    assert report.main(["--sweeps", str(tmp_path), "--out", str(target)]) == 2
+    err = capsys.readouterr().err
+    assert "already exists; pass --overwrite" in err and len(err.strip().splitlines()) == 1
+    assert target.read_text(encoding="utf-8") == f"{report.GENERATED}\n\nthe committed report\n"
 
 
 def test_report_names_missing_sweeps(tmp_path, capsys):

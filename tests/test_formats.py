@@ -2,7 +2,8 @@
 
 ``tests/data/archive_v1.h5`` and ``tests/data/sweep_v1.h5`` were written by warpratchet 0.1.0,
 ``archive_v2.h5`` and ``sweep_v2.h5`` by format v2 before issue 15 (no ``/history``, no verdict
-columns); they stand for files users already have. They are opened read-only in place (and
+columns), ``archive_v2_0.h5`` by format 2.0 with its history (before the CF attributes and named
+dimensions of 2.1); they stand for files users already have. They are opened read-only in place (and
 checked to be byte for byte unchanged afterwards) and resumed only from copies.
 """
 
@@ -28,6 +29,7 @@ from warpratchet.sweep.records import ADDED_COLUMNS
 DATA = Path(__file__).resolve().parent / "data"
 ARCHIVE, SWEEP = DATA / "archive_v1.h5", DATA / "sweep_v1.h5"
 ARCHIVE_V2, SWEEP_V2 = DATA / "archive_v2.h5", DATA / "sweep_v2.h5"
+ARCHIVE_V2_0 = DATA / "archive_v2_0.h5"
 #: The run that wrote archive_v1.h5 (tests/data/README.md; seed 0 is the CLI's default).
 PARAMS, POINTS, SEED, STEPS = MapParams(3.0, 0.1, 0.01), 200, 0, 512
 SCHEDULE = {"chunk_steps": 64, "snapshot_every": 128, "snapshot_points": 50, "checkpoint_every": 256}
@@ -50,7 +52,7 @@ def archived_run(path: Path, steps: int) -> Ensemble:
 @pytest.fixture(autouse=True)
 def fixtures_untouched():
     """No test may change a fixture file, not even by opening it."""
-    files = (ARCHIVE, SWEEP, ARCHIVE_V2, SWEEP_V2)
+    files = (ARCHIVE, SWEEP, ARCHIVE_V2, SWEEP_V2, ARCHIVE_V2_0)
     before = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
     yield
     after = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
@@ -194,3 +196,20 @@ def test_archive_v2_without_history_opens_and_resumes_with_a_verdict(tmp_path, c
     assert report["A"] == expect.A == report["history"]["A"][-1]
     with open_archive(path) as arc:
         assert arc.features == () and arc.history is None and arc.checkpoint_step == 4 * STEPS
+
+
+def test_archive_v2_0_opens_exports_and_resumes_as_2_1(tmp_path):
+    """Format 2.0 (fixed-length strings, no CF attributes, phony dimensions in /initial) reads as
+    before; a resume rebuilds it as 2.1 and continues today's run bit for bit."""
+    with open_archive(ARCHIVE_V2_0) as arc:
+        assert arc.format_version == 2 and "format_minor" not in arc.h5.attrs
+        assert arc.settings["init"] == "strip" and arc.features == ("history",)
+        assert arc.checkpoint_step == STEPS and arc.history is not None
+        assert arc.params == PARAMS
+    want = fresh().run(4 * STEPS).state()
+    path = tmp_path / "v2_0.h5"
+    shutil.copy(ARCHIVE_V2_0, path)
+    assert main(["resume", str(path), "--steps", str(4 * STEPS), "--quiet", "--json"]) == 0
+    with open_archive(path) as arc:
+        assert arc.h5.attrs["format_minor"] == 1 and arc.h5.attrs["Conventions"] == "CF-1.8"
+        assert same_state(arc.checkpoint()[0], want)

@@ -109,7 +109,7 @@ def test_archive_exports_to_pandas_and_xarray(archive):
             and ds["step"].attrs["units"] == "iteration"
         )
         snaps = arc.to_xarray("snapshots")
-        assert snaps["x"].dims == ("step", "point") and np.array_equal(snaps["x"].values, arc.snapshots.x)
+        assert snaps["x"].dims == ("step", "indices") and np.array_equal(snaps["x"].values, arc.snapshots.x)
 
 
 def test_sweep_reads_as_pandas(sweep_file):

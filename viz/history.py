@@ -56,15 +56,28 @@ def plot_history(archive: str | Path, out: str | Path, dpi: int = 150) -> Path:
     for ax in (top, bottom):
         for at in (n / 2, n):
             ax.axvline(at, color="gray", lw=0.6, ls=":")
+    for at, name in ((n / 2, "$n/2$"), (n, "$n$")):  # the two rows the drift verdict compares
+        for ax in (top, bottom):
+            place = ax.get_xaxis_transform()
+            ax.text(at, 0.98, f"{name} ", transform=place, ha="right", va="top", fontsize=8, color="dimgray")
     top.set_ylabel(r"$A_n$ (momentum per kick)")
-    top.legend(fontsize=8, loc="best")
     late = rows["step"] >= n / 64  # zoom on the settled part: early rows swing over the whole range
     if np.any(late) and np.all(np.isfinite(rows["A"][late])):
         lo, hi = (
             np.min(rows["A"][late] - 3 * rows["A_stderr"][late]),
             np.max(rows["A"][late] + 3 * rows["A_stderr"][late]),
         )
-        top.set_ylim(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo))
+        lo, hi = lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo)
+        top.set_ylim(lo, hi)
+        # Rows off the zoomed scale are drawn on its edge, pointing the way they left it.
+        edges = ((rows["A"] > hi, hi, "^", "above"), (rows["A"] < lo, lo, "v", "below"))
+        for off, edge, marker, side in edges:
+            if np.any(off):
+                count = int(off.sum())
+                label = f"{count} early row{'s' if count > 1 else ''} off scale, $A_n$ {side}"
+                top.plot(rows["step"][off], np.full(int(off.sum()), edge), marker, color="C0", ms=6,
+                         clip_on=False, label=label)  # fmt: skip
+    top.legend(fontsize=8, loc="best")
     bottom.plot(rows["step"], rows["sigma"], "o-", ms=3, lw=1, color="C2")
     bottom.set_ylabel(r"$\sigma_n$ (per kick)")
     bottom.set_xlabel(r"$n$ (iterations)")

@@ -116,6 +116,7 @@ def distributions(plt, report: dict[str, Any], title: str):
                     xo[yo > 0], yo[yo > 0], "o", mfc="none", color=color, ms=5, label="still open at the end"
                 )
             _fitted(ax, fit, total, color)
+        _powers_of_two(ax)
         ax.set_xlabel("length L (steps)")
         ax.set_ylabel("P(L) per unit length")
         ax.set_title(name, fontsize=10)
@@ -123,6 +124,20 @@ def distributions(plt, report: dict[str, Any], title: str):
     fig.suptitle(f"{title}; diffusion exponent {mu_label(report)}", fontsize=9)
     fig.tight_layout()
     return fig
+
+
+def _powers_of_two(ax) -> None:
+    """Length ticks at the log2 bins' edges, written as plain numbers (1, 2, 4, ...): matplotlib's
+    log axis would label a range under a decade with minor ticks such as ``2 x 10^0``."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter, NullLocator
+
+    lo, hi = ax.get_xlim()
+    powers = [2.0**k for k in range(0, 64) if lo <= 2.0**k <= hi]
+    step = max(1, math.ceil(len(powers) / 8))  # at most ~8 labels
+    ax.xaxis.set_major_locator(FixedLocator(powers[::step]))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:.0f}"))
+    ax.xaxis.set_minor_locator(NullLocator())
+    ax.xaxis.set_minor_formatter(NullFormatter())
 
 
 def mu_label(report: dict) -> str:
@@ -152,29 +167,34 @@ def _background(params: MapParams, points: int, steps: int, pixels: int) -> np.n
 
 def portrait(plt, params: MapParams, periods: Sequence[int], background: int = 2000):
     """The figure of :func:`main`'s ``--orbits`` form (returns the matplotlib figure)."""
-    from matplotlib.patches import Polygon
+    from matplotlib.patches import Polygon, Rectangle
 
     from warpratchet.orbits import enumerate_orbits
 
-    fig, ax = plt.subplots(figsize=(6.0, 6.4))
+    fig, ax = plt.subplots(figsize=(6.0, 7.4))
+    steps = 300
     if background:
-        image = _background(params, background, 300, 400)
+        image = _background(params, background, steps, 400)
         ax.imshow(
             image, origin="lower", extent=(0, 1, 0, 1), cmap="Greys", vmin=0, vmax=3, interpolation="nearest"
         )
+        # The grey pixels in the legend: what they are, not only that they are there.
+        sea = f"grey: the chaotic sea ({background} orbits from B, {steps} steps)"
+        ax.add_patch(Rectangle((0, 0), 0, 0, fc=plt.get_cmap("Greys")(1 / 3), lw=0, label=sea))
     seen = set()
     for period in periods:
         result = enumerate_orbits(params, period)
         for family in result.families:
             v = family.vertices
-            label = "families (polygons, segments)" if "family" not in seen else None
-            seen.add("family")
             if family.shape == "polygon":
+                label = None if "polygon" in seen else "cyan areas: periodic points with DM^m = I"
                 ax.add_patch(
                     Polygon(v, closed=True, fc="tab:cyan", ec="tab:blue", alpha=0.5, lw=0.5, label=label)
                 )
             else:
+                label = None if "segment" in seen else "blue segments: periodic points with DM^m = I"
                 ax.plot(v[:, 0], v[:, 1], color="tab:blue", lw=1.0, label=label)
+            seen.add(family.shape if family.shape == "polygon" else "segment")
         for orbit in result.orbits:
             style = KIND_STYLE[orbit.kind]
             label = orbit.kind if orbit.kind not in seen else None
@@ -191,7 +211,8 @@ def portrait(plt, params: MapParams, periods: Sequence[int], background: int = 2
     ax.set_title(
         f"periodic orbits of period {shown}: K = {params.K}, b1 = {params.b1}, b2 = {params.b2}", fontsize=9
     )
-    ax.legend(fontsize=7, loc="upper right")
+    # Below the torus, not over it: the legend must not hide orbits.
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=1, frameon=False)
     fig.tight_layout()
     return fig
 

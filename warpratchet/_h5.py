@@ -64,9 +64,20 @@ def create_h5(path: str | os.PathLike) -> h5py.File:
     it was before or after its last rewrite, never half of each. Free space is not persisted
     (an SWMR writer never frees any). Where the libhdf5 cannot be called directly (not Linux),
     :func:`abandon_h5` could not close a paged file, and the file space is HDF5's default.
+
+    The root group keeps up to 64 links and attributes in its checksummed object header, as
+    every group of an archive does (``archive.layout``): past 8 HDF5 would move them to an
+    unchecksummed fractal heap, and an archive's root carries its CF global attributes.
     """
-    paged = {"fs_strategy": "page", "fs_page_size": PAGE_SIZE, "fs_persist": False}
-    return h5py.File(path, "w", libver=LIBVER, **(paged if _file_info_getter() is not None else {}))
+    fapl = h5p.create(h5p.FILE_ACCESS)
+    fapl.set_libver_bounds(h5f.LIBVER_V110, h5f.LIBVER_V110)  # LIBVER
+    fcpl = h5p.create(h5p.FILE_CREATE)
+    if _file_info_getter() is not None:
+        fcpl.set_file_space_strategy(h5f.FSPACE_STRATEGY_PAGE, False, 1)
+        fcpl.set_file_space_page_size(PAGE_SIZE)
+    fcpl.set_attr_phase_change(64, 32)
+    compact_links(fcpl)
+    return h5py.File(h5f.create(os.fsencode(path), h5f.ACC_TRUNC, fapl=fapl, fcpl=fcpl))
 
 
 def sync_h5(f: h5py.File) -> None:

@@ -49,6 +49,7 @@ GLOSSARY: dict[str, tuple[str, str]] = {
     "snapshots/step": ("iteration", "step of the snapshot"),
     "snapshots/indices": ("1", "sorted indices of the subsample's points in the ensemble"),
     "snapshots/p": ("1", "momentum p mod 1, in [0, 1)"),
+    "snapshots/p_unwrapped": ("1", "momentum p_n = p0 + n A_n, not mod 1 (derived: p, A, /initial/p0)"),
     "snapshots/ftle": ("1/iteration", "finite-time Lyapunov exponent of each point"),
     "snapshots/A": ("1/iteration", "A_n of Eq. (An) of each point"),
     "progress/series_rows": ("1", "valid rows of /series (raised after they are on disk)"),

@@ -20,6 +20,7 @@ import numpy as np
 from .params import MapParams
 
 __all__ = [
+    "REFERENCE",
     "K3",
     "Rotation",
     "ROTATIONS",
@@ -47,6 +48,9 @@ __all__ = [
     "FIG9_SIGMA",
     "FIG9_ENSEMBLE",
 ]
+
+#: The paper, as an archive's ``references`` attribute cites it.
+REFERENCE = 'I. Dana and V. B. Roitberg, "Weak-Chaos Ratchet Accelerator", Phys. Rev. E'
 
 #: The kick strength of the exact theory (Sec. IV, Eqs. Aa, Ab; Appendices B-E): Figs. 3-8, 10-12.
 K3 = 3.0

@@ -28,10 +28,24 @@ def _domain_curve(K: float = paper.K3, samples: int = 400) -> tuple[np.ndarray, 
     return b1, np.array([theory.F(b, K) for b in b1])
 
 
-def _draw_domain_lines(ax, color: str = "black", lw: float = 1.0) -> None:
+#: A point inside each domain of Fig. 3 (``theory.domain`` places it there), where its name is written.
+DOMAIN_LABELS = {"LR": (0.08, 0.08), "L": (0.05, 0.3), "R": (0.3, 0.05)}
+
+
+def _draw_domain_lines(ax, color: str = "black", lw: float = 1.0, named: bool = False) -> None:
+    """The domain lines of Fig. 3 (Eq. lai); ``named``: with a legend entry and each domain's name."""
     b1, b2 = _domain_curve()
-    ax.plot(b1, b2, color=color, lw=lw)
+    label = "domain lines of Fig. 3, Eq. (lai)" if named else None
+    ax.plot(b1, b2, color=color, lw=lw, label=label)
     ax.plot(b2, b1, color=color, lw=lw)
+    if named:
+        from matplotlib.patheffects import withStroke
+
+        outline = [withStroke(linewidth=2, foreground="black")]  # readable on light and dark cells
+        for text, (x, y) in DOMAIN_LABELS.items():
+            ax.text(x, y, text, fontsize=12, ha="center", va="center", color=color, path_effects=outline)
+        style = {"ha": "center", "va": "center", "color": color, "path_effects": outline}
+        ax.text(0.38, 0.38, "no islands", fontsize=9, **style)
 
 
 def _maximal_path_curve(samples: int = 400) -> tuple[np.ndarray, np.ndarray]:
@@ -45,7 +59,7 @@ def fig3(ctx: Context) -> None:
     ax.plot(b1, b2, color="C0", lw=1.5, label=r"$b_2=F(b_1)$ (left island boundary)")
     ax.plot(b2, b1, color="C3", lw=1.5, label=r"$b_1=F(b_2)$ (right island boundary)")
     # Label each domain at a point that theory.domain places in it.
-    for text, (x, y) in {"LR": (0.08, 0.08), "L": (0.05, 0.3), "R": (0.3, 0.05)}.items():
+    for text, (x, y) in DOMAIN_LABELS.items():
         assert theory.domain(MapParams(paper.K3, x, y)) == text
         ax.text(x, y, text, ha="center", va="center", fontsize=14)
     ax.text(0.38, 0.38, "no islands", ha="center", va="center", fontsize=10)
@@ -106,8 +120,8 @@ def fig6(ctx: Context) -> None:
     fig, ax = ctx.plt.subplots(figsize=(6.0, 6.4))
     edges = np.linspace(0.0, paper.PLANE_EXTENT, axis.size + 1)
     _colour_map(ax, fig, edges, np.ma.masked_invalid(sigma), "magma", r"$\sigma$ (per kick)")
-    _draw_domain_lines(ax, color="cyan", lw=0.8)
-    plane_axes(ax, r"$K=3$: Lyapunov exponent $\sigma$ of the chaotic region")
+    _draw_domain_lines(ax, color="cyan", lw=0.8, named=True)
+    plane_axes(ax, r"$K=3$: Lyapunov exponent $\sigma$ of the chaotic region", legend_size=7)
     ctx.save(
         fig,
         "fig6",
@@ -115,6 +129,7 @@ def fig6(ctx: Context) -> None:
         Fig. 6. Lyapunov exponent sigma (mean finite-time exponent of the chaotic orbits) on a {s.grid_side} x
         {s.grid_side} grid of cell centres, each from {s.grid_points} orbits started in B and {s.grid_steps}
         steps (fewer than the paper's 10^4 x 120000, to fit the time budget; the standard error of each sigma
-        is below {100 * worst:.2f}% of sigma). Cyan: domain lines of Fig. 3. sigma -> 0 as b1, b2 -> 0.
+        is below {100 * worst:.2f}% of sigma). Cyan: domain lines of Fig. 3 and the domains' names (LR: both
+        islands; L, R: one; none beyond). sigma -> 0 as b1, b2 -> 0.
         """,
     )

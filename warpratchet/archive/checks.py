@@ -7,7 +7,9 @@ Shared by the reader, the writer, ``resume`` and ``verify`` of :mod:`warpratchet
 from __future__ import annotations
 
 import contextlib
+import zlib
 from collections.abc import Iterator
+from typing import Any
 
 import h5py
 import numpy as np
@@ -15,7 +17,22 @@ import numpy as np
 from .._h5verify import chunk_past_end, first_line, read_rows, refresh
 from .names import ArchiveError
 
-__all__ = ["reading", "refresh", "check_extent", "read_counter", "valid_rows", "nonfinite", "listed"]
+__all__ = [
+    "reading",
+    "refresh",
+    "check_extent",
+    "read_counter",
+    "valid_rows",
+    "nonfinite",
+    "listed",
+    "TEXT_CHECKSUM",
+    "text_checksum",
+    "check_text",
+]
+
+#: The numeric attribute (in the checksummed object header) that seals a group's string
+#: attributes: their text lives in HDF5's global heap, which carries no checksum of its own.
+TEXT_CHECKSUM = "text_crc32"
 
 
 @contextlib.contextmanager
@@ -81,3 +98,19 @@ def nonfinite(state: dict[str, np.ndarray]) -> dict[str, int]:
 def listed(counts: dict[str, int]) -> str:
     """``{"dx": 766}`` as ``"766 dx"`` (several joined by commas)."""
     return ", ".join(f"{count} {field}" for field, count in counts.items())
+
+
+def text_checksum(attrs: dict[str, Any]) -> int:
+    """CRC-32 of the string attributes in ``attrs``: ``key=value`` lines sorted by key."""
+    lines = sorted(f"{k}={v}" for k, v in attrs.items() if isinstance(v, str) and k != TEXT_CHECKSUM)
+    return zlib.crc32("\n".join(lines).encode())
+
+
+def check_text(path: str, obj: h5py.Group, what: str) -> None:
+    """ArchiveError if the string attributes of ``obj`` differ from their :data:`TEXT_CHECKSUM`
+    (archives without one, written before strings were variable-length, are not checked)."""
+    with reading(path, what):
+        attrs = dict(obj.attrs.items())
+    stored = attrs.get(TEXT_CHECKSUM)
+    if stored is not None and int(stored) != text_checksum(attrs):
+        raise ArchiveError(f"{path}: {what} are damaged (their checksum differs); the archive is corrupted")

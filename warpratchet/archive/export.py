@@ -3,7 +3,11 @@
 Units and descriptions come from the file's ``units``/``long_name`` attributes (format v2) or,
 for format v1 files that lack them, from :mod:`warpratchet.glossary`.
 The file itself also opens directly: ``xarray.open_dataset(path, group="series",
-engine="h5netcdf")`` (format v2).
+engine="h5netcdf")`` (format v2). Both routes give the same dimension names (the names netCDF
+readers give the file's dimension scales: ``step``, ``indices``, ``block_step``,
+``block_indices``) and decode ``unix_time`` alike (``datetime64``, CF time units).
+:func:`dataset` adds one derived variable to the snapshots, the unwrapped momentum
+``p_unwrapped`` (:func:`unwrapped_momentum`).
 """
 
 from __future__ import annotations
@@ -16,7 +20,7 @@ from ..history import HISTORY_FIELDS
 from ..spec import attr_value
 from .names import SERIES_FIELDS, SNAPSHOT_FIELDS, describe
 
-__all__ = ["attributes", "series_frame", "dataset"]
+__all__ = ["attributes", "series_frame", "dataset", "unwrapped_momentum"]
 
 
 def _need(module: str) -> Any:
@@ -68,26 +72,53 @@ def series_frame(arc, group: str = "series"):
     return frame
 
 
+def unwrapped_momentum(p0: np.ndarray, steps: np.ndarray, p: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """The momentum ``p_n`` of snapshot points, not reduced mod 1: ``p0 + n A_n`` (Eq. An).
+
+    ``p0`` ``(M,)`` is the points' initial momentum (``/initial/p0`` at ``/snapshots/indices``),
+    ``steps`` ``(S,)``, ``p`` (mod 1) and ``A`` ``(S, M)`` the snapshots'. ``p0 + n A_n`` carries
+    the rounding of ``A_n``; its whole part is exact once rounded against the stored ``p`` mod 1,
+    so the result is ``round(p0 + n A_n - p) + p``, the stored fraction unchanged.
+    """
+    approx = p0[None, :] + steps[:, None].astype(np.float64) * A
+    return np.round(approx - p) + p
+
+
+def _dataset_attrs(arc) -> dict[str, Any]:
+    """The Dataset's attributes: the file's CF global attributes (format 2.1) and the map's parameters."""
+    skip = {"format", "format_version", "format_minor", "features", "text_crc32"}
+    stored = {k: attr_value(v) for k, v in arc.h5.attrs.items() if k not in skip}
+    return {**stored, "path": arc.path, **arc.params.as_dict()}
+
+
 def dataset(arc, group: str = "series"):
-    """``/series`` (dimension ``step``), ``/snapshots`` (``step``, ``point``) or ``/history`` (``step``;
-    block gains on ``block_step``, ``block_point``) as a Dataset."""
+    """``/series`` (dimension ``step``), ``/snapshots`` (``step``, ``indices``) or ``/history``
+    (``step``; block gains on ``block_step``, ``block_indices``) as a Dataset, named and decoded as
+    ``xarray.open_dataset(path, group=group, engine="h5netcdf")`` names and decodes the file."""
     xr = _need("xarray")
-    attrs = {"path": arc.path, **{k: v for k, v in arc.params.as_dict().items()}}
+    attrs = _dataset_attrs(arc)
     if group == "series":
         series = arc.series
         coords = {"step": ("step", series["step"], attributes(arc, "series", "step"))}
         data = {name: ("step", series[name], attributes(arc, "series", name)) for name in SERIES_FIELDS[1:]}
-        return xr.Dataset(data, coords=coords, attrs=attrs)
+        return xr.decode_cf(xr.Dataset(data, coords=coords, attrs=attrs))
     if group == "snapshots":
         snaps = arc.snapshots
+        dims = ("step", "indices")
         coords = {
             "step": ("step", snaps.steps, attributes(arc, "snapshots", "step")),
-            "point": ("point", snaps.indices, attributes(arc, "snapshots", "indices")),
+            "indices": ("indices", snaps.indices, attributes(arc, "snapshots", "indices")),
         }
         data = {
-            name: (("step", "point"), getattr(snaps, name), attributes(arc, "snapshots", name))
-            for name in SNAPSHOT_FIELDS
+            name: (dims, getattr(snaps, name), attributes(arc, "snapshots", name)) for name in SNAPSHOT_FIELDS
         }
+        p0 = arc.initial["p0"][snaps.indices]
+        units, long_name = describe("snapshots", "p_unwrapped")
+        data["p_unwrapped"] = (
+            dims,
+            unwrapped_momentum(p0, snaps.steps, snaps.p, snaps.A),
+            {"units": units, "long_name": long_name},
+        )
         return xr.Dataset(data, coords=coords, attrs=attrs)
     if group == "history":
         history = _history(arc)
@@ -99,8 +130,8 @@ def dataset(arc, group: str = "series"):
                 np.asarray(blocks["block_step"]),
                 attributes(arc, "history", "block_step"),
             ),
-            "block_point": (
-                "block_point",
+            "block_indices": (
+                "block_indices",
                 np.asarray(history.block_indices),
                 attributes(arc, "history", "block_indices"),
             ),
@@ -112,6 +143,6 @@ def dataset(arc, group: str = "series"):
         }
         for name in ("block_gain", "block_ftle"):
             values = np.asarray(blocks[name], dtype=np.float64).reshape(len(blocks["block_step"]), width)
-            data[name] = (("block_step", "block_point"), values, attributes(arc, "history", name))
+            data[name] = (("block_step", "block_indices"), values, attributes(arc, "history", name))
         return xr.Dataset(data, coords=coords, attrs=attrs)
     raise ValueError(f"group = {group!r} is not 'series', 'snapshots' or 'history'")

@@ -9,7 +9,10 @@ reader use the layout only through these two modules.
 Every dataset is chunked and carries the Fletcher-32 filter and ``units``/``long_name``
 attributes; mutable scalars (the ``/progress`` counters, ``current``, a slot's ``step``) are
 ``(1,)`` datasets, because SWMR allows no new objects or attribute changes once a writer has
-started. Strings are fixed-length attributes, stored inside the (checksummed) object headers.
+started. String attributes are variable-length UTF-8 (h5py reads them as ``str``); numbers stay
+inside the (checksummed) object headers. The root carries CF global attributes
+(:func:`global_attrs`), so that netCDF readers and the CF compliance checker see what the
+archive holds without this package.
 """
 
 from __future__ import annotations
@@ -25,13 +28,17 @@ import h5py
 import numpy as np
 from h5py import h5a, h5g, h5p, h5s, h5t
 
+from .. import theory
 from .._files import compact_links
 from ..ensemble import RENORM_CHECK_EVERY, RENORM_THRESHOLD, STATE_FIELDS
+from ..paper import REFERENCE
 from ..params import MapParams
 from ..spec import LEGACY_NAMES, attr_value, check_setting
+from .checks import TEXT_CHECKSUM, text_checksum
 from .names import (
     COUNTERS,
     FORMAT,
+    FORMAT_MINOR,
     FORMAT_VERSION,
     HISTORY_COUNTERS,
     INT_SERIES,
@@ -49,7 +56,10 @@ __all__ = [
     "read_settings",
     "kernel_constants",
     "software_versions",
+    "map_attrs",
+    "global_attrs",
     "create",
+    "seal",
 ]
 
 #: The RunSpec settings an archive stores (``steps`` is progress, ``/progress/target_step``:
@@ -137,7 +147,7 @@ def read_settings(attrs: h5py.AttributeManager, version: int) -> dict[str, Any]:
     Version 1 wrote ``sampler`` for ``init``, -1 for no seed and NaN for the default threshold;
     all three read as version 2 stores them.
     """
-    settings = {LEGACY_NAMES.get(k, k): attr_value(v) for k, v in attrs.items()}
+    settings = {LEGACY_NAMES.get(k, k): attr_value(v) for k, v in attrs.items() if k != TEXT_CHECKSUM}
     if version == 1:
         if settings.get("seed", -1) < 0:
             settings["seed"] = None
@@ -177,6 +187,42 @@ def software_versions() -> dict[str, str]:
     }
 
 
+# -- what a reader without warpratchet sees first -------------------------------------------------
+def map_attrs(params: MapParams) -> dict[str, float]:
+    """``K``, ``b1``, ``b2`` and, where a closed form holds (K = 3), ``A_theory`` of Eqs. (Aa)/(Ab).
+
+    The root and ``/series`` carry them, so that a series read on its own keeps its context.
+    """
+    out = dict(params.as_dict(derived=False))
+    a_theory = theory.summary(params)["A"]
+    return out if a_theory is None else {**out, "A_theory": float(a_theory)}
+
+
+def global_attrs(params: MapParams, versions: dict[str, str], created: str) -> dict[str, Any]:
+    """The root's CF-1.8 global attributes (Sec. 2.6 of the conventions) and :func:`map_attrs`."""
+    version = versions.get("warpratchet", "unknown")
+    closed_form = (
+        "A_theory is A of Eqs. (Aa)/(Ab) at these parameters"
+        if params.K == 3.0
+        else "no A_theory: the paper's closed forms for A hold at K = 3 only"
+    )
+    return {
+        "Conventions": "CF-1.8",
+        "title": (
+            f"Weak-chaos ratchet accelerator: ensemble of the map at K = {params.K}, "
+            f"b1 = {params.b1}, b2 = {params.b2}"
+        ),
+        "history": f"{created} created by warpratchet {version}",
+        "source": f"warpratchet {version}: NVIDIA Warp {versions.get('warp', 'unknown')} ensemble "
+        "of the map Eq. (cpem) with the force of Eq. (fx) and its tangent map",
+        "references": REFERENCE,
+        "comment": "momenta and positions in units of the map's period, rates per iteration; "
+        f"{closed_form}; /series holds A_n of Eq. (An) over the chaotic points with its standard "
+        "error; the layout is docs/archive.md of warpratchet",
+        **map_attrs(params),
+    }
+
+
 # -- the whole layout, created up front -----------------------------------------------------------
 def create(
     f: h5py.File,
@@ -201,38 +247,53 @@ def create(
     ``/history`` is created too, empty, and listed in ``/@features``.
     """
     n = int(settings["points"])
-    _set_attrs(f, {"format": FORMAT, "format_version": FORMAT_VERSION, "created": created})
+    root = {"format": FORMAT, "format_version": FORMAT_VERSION, "format_minor": FORMAT_MINOR}
+    _set_attrs(f, {**root, "created": created, **global_attrs(params, versions, created)})
     features = ["history"] if history is not None else []
-    f.attrs["features"] = np.bytes_(",".join(features).encode())  # names.KNOWN_FEATURES
+    _set_attrs(f, {"features": ",".join(features)})  # names.KNOWN_FEATURES
     _set_attrs(_group(f, "params"), params.as_dict())
     _set_attrs(_group(f, "settings"), settings_attrs(settings))
     _set_attrs(_group(f, "versions"), versions)
+    for obj in (f, f["settings"], f["versions"]):  # the string attributes readers act on
+        seal(obj)
 
     g = _group(f, "initial")
     _set_attrs(g, {"step": int(initial_step)})
+    point = _dimension(g, "point", n)
     for name in STATE_FIELDS:
         ds = _state_dataset(g, name, n, FILL[name])
+        ds.dims[0].attach_scale(point)
         values = np.asarray(initial[name])
         if np.any(values != FILL[name]):  # a uniform field stays a fill value, no storage
             ds.write_direct(np.ascontiguousarray(values, dtype=ds.dtype))
 
-    _step_rows(_group(f, "series"), SERIES_FIELDS, INT_SERIES)
+    g = _group(f, "series")
+    _set_attrs(g, map_attrs(params))
+    _step_rows(g, SERIES_FIELDS, INT_SERIES)
     _sampled_rows(_group(f, "snapshots"), ("indices", "point"), ("step", *SNAPSHOT_FIELDS), indices)
 
     g = _group(f, "progress")
+    counter = _dimension(g, "counter", 1)
     for key, path in COUNTERS[FORMAT_VERSION].items():
-        _counter(g, path.split("/")[1], target_step if key == "target" else 0)
+        _counter(g, path.split("/")[1], target_step if key == "target" else 0, counter)
 
     g = _group(f, "checkpoint")
-    _counter(g, "current", -1)
+    counter, point = _dimension(g, "counter", 1), _dimension(g, "point", n)
+    _counter(g, "current", -1, counter)
     for slot in SLOTS:
         s = _group(g, slot)
-        _counter(s, "step", -1)
+        _counter(s, "step", -1, counter)
         for name in STATE_FIELDS:
-            _state_dataset(s, name, n)
+            _state_dataset(s, name, n).dims[0].attach_scale(point)
 
     if history is not None:
         _history_group(f, history)
+
+
+def seal(obj: h5py.Group) -> None:
+    """Store the :data:`~.checks.TEXT_CHECKSUM` of the string attributes of ``obj`` (after their last
+    change)."""
+    _set_attrs(obj, {TEXT_CHECKSUM: text_checksum(dict(obj.attrs.items()))})
 
 
 def _history_group(f: h5py.File, history: Any) -> None:
@@ -252,7 +313,7 @@ def _history_group(f: h5py.File, history: Any) -> None:
     _sampled_rows(g, ("block_indices", "block_point"), BLOCK_FIELDS, indices)
     progress = f["progress"]
     for path in HISTORY_COUNTERS.values():
-        _counter(progress, path.split("/")[1], 0)
+        _counter(progress, path.split("/")[1], 0, progress["counter"])
 
 
 def _step_rows(group: h5py.Group, names: tuple[str, ...], int_names: tuple[str, ...]) -> None:
@@ -296,9 +357,22 @@ def _state_dataset(group: h5py.Group, name: str, n: int, fill: float | int | Non
     return _dataset(group, name, shape=(n,), dtype=dtype, chunks=(min(n, STATE_CHUNK),), **kw)
 
 
-def _counter(group: h5py.Group, name: str, value: int) -> None:
+def _counter(group: h5py.Group, name: str, value: int, dimension: h5py.Dataset) -> None:
     # Mutable scalars are (1,) chunked datasets: checksummed, and writable under SWMR.
-    _dataset(group, name, data=np.array([value], np.int64), chunks=(1,))
+    _dataset(group, name, data=np.array([value], np.int64), chunks=(1,)).dims[0].attach_scale(dimension)
+
+
+#: netCDF-4's mark of a dimension that is not a variable (a dimension scale's ``NAME``).
+_NETCDF_DIMENSION = "This is a netCDF dimension but not a netCDF variable."
+
+
+def _dimension(group: h5py.Group, name: str, size: int) -> h5py.Dataset:
+    """A named dimension of ``size`` without values, as netCDF-4 writes one: an HDF5 dimension
+    scale whose chunks are never written (no storage), so that netCDF readers (ncdump, xarray,
+    netCDF4) name the axis ``name`` instead of inventing a ``phony_dim``."""
+    ds = group.create_dataset(name, shape=(size,), dtype=np.float32, chunks=(min(size, STATE_CHUNK),))
+    ds.make_scale(f"{_NETCDF_DIMENSION}{size:10d}")
+    return ds
 
 
 def _rows(group: h5py.Group, name: str, dtype: Any, width: int | None = None) -> h5py.Dataset:
@@ -323,21 +397,25 @@ def _group(parent: h5py.Group, name: str) -> h5py.Group:
 
 
 def _set_attrs(obj: h5py.HLObject, values: dict[str, Any]) -> None:
-    """Attributes, strings as fixed-length UTF-8 (stored in the checksummed header, unlike the
-    variable-length strings h5py writes by default, which live in an unchecked global heap).
+    """Attributes: numbers in the checksummed header, strings as variable-length UTF-8, the type
+    that h5py reads as ``str`` and netCDF as a string (its text lives in HDF5's global heap,
+    which carries no checksum: a damaged letter shows in a label, and stored settings such as
+    ``init`` are checked against their allowed values when read).
 
     Written with HDF5's low-level calls: a layout has ~120 attributes, and h5py's ``attrs[key] =``
     (~70 us each) was a third of the time it takes to create an archive.
     """
     scalar = h5s.create(h5s.SCALAR)
     for key, value in values.items():
-        data = np.asarray(np.bytes_(value.encode()) if isinstance(value, str) else value)
-        if data.dtype.kind == "S" and data.itemsize == 0:
-            data = np.asarray(np.bytes_(b""), dtype="S1")  # HDF5 has no zero-length string type
-        if data.shape != () or data.dtype.kind not in "biufS":
+        data = np.array(value, dtype=_UTF8 if isinstance(value, str) else None)
+        if data.shape != () or data.dtype.kind not in "biufO":
             obj.attrs[key] = value  # anything else the usual way
             continue
         if h5a.exists(obj.id, key.encode()):
             h5a.delete(obj.id, key.encode())
-        attr = h5a.create(obj.id, key.encode(), h5t.py_create(data.dtype), scalar)
-        attr.write(np.ascontiguousarray(data))
+        # The file's type and the memory's (for a string: the pointer h5py converts from).
+        file_type, memory_type = h5t.py_create(data.dtype, logical=True), h5t.py_create(data.dtype)
+        h5a.create(obj.id, key.encode(), file_type, scalar).write(data, mtype=memory_type)
+
+
+_UTF8 = h5py.string_dtype("utf-8")

@@ -13,6 +13,13 @@ from version 1 (warpratchet 0.1.0, still read) in:
   HDF5 dimension scales attached to their groups' datasets, ``/snapshots/indices`` too;
 * a closed archive holds exactly its valid rows (trimmed at close);
 * ``/@features``: the optional groups present (:data:`KNOWN_FEATURES`).
+
+Minor version 1 of version 2 (root attribute ``format_minor``; absent: 0) only adds what older
+readers ignore: CF global attributes (``Conventions``, ``title``, ``history``, ``source``,
+``references``) with the map's parameters and the theory's ``A_theory`` at the root and on
+``/series``; string attributes as variable-length UTF-8 (h5py reads them as ``str``); the
+netCDF dimensions ``point`` (``/initial``, ``/checkpoint``) and ``counter`` (the ``(1,)``
+counters), so that no dataset has an unnamed dimension.
 """
 
 from __future__ import annotations
@@ -23,6 +30,7 @@ from ..errors import FileFormatError, NonFiniteStateError  # NonFiniteStateError
 __all__ = [
     "FORMAT",
     "FORMAT_VERSION",
+    "FORMAT_MINOR",
     "READABLE_VERSIONS",
     "SERIES_FIELDS",
     "INT_SERIES",
@@ -41,6 +49,9 @@ __all__ = [
 FORMAT = "warpratchet-archive"
 #: Layout version written, root attribute ``format_version``.
 FORMAT_VERSION = 2
+#: Additions within version 2 that older readers ignore, root attribute ``format_minor``
+#: (absent: 0; module docstring).
+FORMAT_MINOR = 1
 #: Layout versions this release reads (and resumes: a resumed version-1 archive is rebuilt as 2).
 READABLE_VERSIONS = (1, 2)
 

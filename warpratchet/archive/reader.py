@@ -27,7 +27,7 @@ from ..history import History
 from ..spec import SAMPLERS, RunSpec, attr_value, params_of
 from . import progress
 from . import transport as _transport
-from .checks import read_counter, reading, valid_rows
+from .checks import TEXT_CHECKSUM, check_text, read_counter, reading, valid_rows
 from .history_group import history_info, read_history
 from .layout import read_settings
 from .names import (
@@ -95,13 +95,18 @@ class Archive:
         self.format_version = int(version)
         self._counters = COUNTERS[self.format_version]
         with reading(self.path, "the metadata"):
+            texts = ((f, "the root attributes"), (f["settings"], "/settings"), (f["versions"], "/versions"))
+        for obj, what in texts:
+            check_text(self.path, obj, f"the text attributes of {what}")
+        with reading(self.path, "the metadata"):
             self.created = str(attr_value(f.attrs["created"]))
             features = str(attr_value(f.attrs.get("features", b"")))
             self.features = tuple(name for name in features.split(",") if name)
             p = {k: attr_value(v) for k, v in f["params"].attrs.items()}
             self.params = params_of(p["K"], p.get("b1"), p.get("b2"), p.get("knots"), p.get("values"))
             self.settings = read_settings(f["settings"].attrs, self.format_version)
-            self.versions = {k: str(attr_value(v)) for k, v in f["versions"].attrs.items()}
+            versions = f["versions"].attrs.items()
+            self.versions = {k: str(attr_value(v)) for k, v in versions if k != TEXT_CHECKSUM}
             self.initial_step = int(attr_value(f["initial"].attrs["step"]))
         if self.format_version == 1:
             # Version 1 callers read the sampler as "sampler" (tests/data/archive_v1.h5).
@@ -297,9 +302,11 @@ class Archive:
         return series_frame(self, group)
 
     def to_xarray(self, group: str = "series"):
-        """``series`` (dimension ``step``), ``snapshots`` (``step``, ``point``) or ``history``
-        (``step``; block gains on ``block_step``, ``block_point``) as an ``xarray.Dataset`` with
-        units and long names (needs ``warpratchet[xarray]``)."""
+        """``series`` (dimension ``step``), ``snapshots`` (``step``, ``indices``; with the derived
+        unwrapped momentum ``p_unwrapped``) or ``history`` (``step``; block gains on ``block_step``,
+        ``block_indices``) as an ``xarray.Dataset`` with units, long names and the file's global
+        attributes, named and decoded as xarray's h5netcdf engine reads the file (needs
+        ``warpratchet[xarray]``)."""
         from .export import dataset
 
         return dataset(self, group)

@@ -24,11 +24,12 @@ import h5py
 import numpy as np
 
 from ..glossary import describe
+from ..spec import attr_value
 from ..transport.fits import GROUPS
 from ..transport.histograms import BINS, CARRY_FIELDS, HISTOGRAMS
 from .checks import read_counter, reading, valid_rows
 from .checks import refresh as _refresh
-from .layout import ROW_CHUNK, STATE_CHUNK, _group, _set_attrs
+from .layout import ROW_CHUNK, STATE_CHUNK, _dimension, _group, _set_attrs, seal
 from .names import SLOTS, ArchiveError
 from .rows import Rows
 
@@ -57,26 +58,42 @@ def _dataset(group: h5py.Group, name: str, **kw: Any) -> h5py.Dataset:
 
 def create(f: h5py.File, points: int) -> None:
     """Create ``/transport`` (rows, counter, both slots) and list the feature in ``/@features``."""
-    features = [name for name in f.attrs["features"].decode().split(",") if name]
-    f.attrs["features"] = np.bytes_(",".join([*features, FEATURE]).encode())
+    features = [name for name in str(attr_value(f.attrs["features"])).split(",") if name]
+    _set_attrs(f, {"features": ",".join([*features, FEATURE])})
+    seal(f)
     g = _group(f, "transport")
     _set_attrs(g, {"bins": BINS, "groups": GROUPS, "histograms": ",".join(HISTOGRAMS)})
+    # Every axis is a named (netCDF) dimension: rows, histogram, bin, point, group, moment.
+    dims = {
+        name: _dimension(g, name, size)
+        for name, size in (
+            ("counter", 1),
+            ("histogram", len(HISTOGRAMS)),
+            ("bin", BINS),
+            ("point", points),
+            ("group", GROUPS),
+            ("moment", 3),
+        )
+    }
     step = _dataset(g, "step", shape=(0,), maxshape=(None,), chunks=(ROW_CHUNK,), dtype=np.int64)
     step.make_scale("step")
     counts = _dataset(
         g, "counts", shape=(0, len(HISTOGRAMS), BINS), maxshape=(None, len(HISTOGRAMS), BINS),
         chunks=(16, len(HISTOGRAMS), BINS), dtype=np.int64,
     )  # fmt: skip
-    counts.dims[0].attach_scale(step)
-    _dataset(g, "rows", data=np.zeros(1, np.int64), chunks=(1,))
+    _attach(counts, step, dims["histogram"], dims["bin"])
+    _attach(_dataset(g, "rows", data=np.zeros(1, np.int64), chunks=(1,)), dims["counter"])
     width = (min(points, STATE_CHUNK),)
     for slot in SLOTS:
         s = _group(g, slot)
         for name in CARRY_FIELDS:
-            _dataset(s, name, shape=(points,), dtype=np.int64, chunks=width)
-        _dataset(s, "counts", shape=(len(HISTOGRAMS), BINS), dtype=np.int64, chunks=(len(HISTOGRAMS), BINS))
-        _dataset(s, "spread_steps", shape=(0,), maxshape=(None,), chunks=(64,), dtype=np.int64)
-        _dataset(
+            _attach(_dataset(s, name, shape=(points,), dtype=np.int64, chunks=width), dims["point"])
+        shape = (len(HISTOGRAMS), BINS)
+        counts = _dataset(s, "counts", shape=shape, dtype=np.int64, chunks=shape)
+        _attach(counts, dims["histogram"], dims["bin"])
+        steps = _dataset(s, "spread_steps", shape=(0,), maxshape=(None,), chunks=(64,), dtype=np.int64)
+        steps.make_scale("spread_steps")
+        spread = _dataset(
             s,
             "spread",
             shape=(0, GROUPS, 3),
@@ -84,6 +101,13 @@ def create(f: h5py.File, points: int) -> None:
             chunks=(64, GROUPS, 3),
             dtype=np.float64,
         )
+        _attach(spread, steps, dims["group"], dims["moment"])
+
+
+def _attach(ds: h5py.Dataset, *scales: h5py.Dataset) -> None:
+    """Name each axis of ``ds`` by its dimension scale, in order."""
+    for axis, scale in enumerate(scales):
+        ds.dims[axis].attach_scale(scale)
 
 
 class TransportRows(Rows):

@@ -156,6 +156,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         if argv[:1] == ["figures"]:  # its options are warpratchet_viz's: passed through unparsed
             return figures.main(argv[1:])
         parser = build_parser()
+        if not argv:  # no command: the overview, as --help prints it
+            parser.print_help()
+            return 0
         try:
             args = parser.parse_args(_joined_lists(argv))
         except SystemExit as exc:  # --help, --version (0); parse errors raise UsageError instead

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import difflib
 import json
 import math
 import sys
@@ -81,7 +82,36 @@ class Parser(argparse.ArgumentParser):
         return f"usage: {self.prog} [options]  ({self.prog} --help lists them)"
 
     def error(self, message: str) -> NoReturn:
-        raise UsageError(message, prog=self.prog, usage=self.short_usage())
+        raise UsageError(message, prog=self.prog, hint=self._suggestion(message), usage=self.short_usage())
+
+    def parse_known_args(self, args=None, namespace=None):
+        # Kept for the error's hint: argparse reports a missing required flag before an unknown one.
+        self._words = list(sys.argv[1:] if args is None else args)
+        return super().parse_known_args(args, namespace)
+
+    def _suggestion(self, message: str) -> str:
+        """``; did you mean --k -> --K?`` for an unknown flag close to one this parser has (the same
+        letters in another case first, then :func:`difflib.get_close_matches`), after an
+        unrecognized argument or a missing required one."""
+        if not message.startswith(("unrecognized arguments:", "the following arguments are required")):
+            return ""
+        words = getattr(self, "_words", [])
+        parsers = [self]  # the top level reports a subcommand's unknown flags: look in it too
+        for action in self._subparsers._group_actions if self._subparsers else ():
+            parsers += [action.choices[w] for w in words[:1] if w in action.choices]
+        flags = {flag for p in parsers for flag in p._option_string_actions}
+        known = sorted(flag for flag in flags if flag.startswith("--"))
+        unknown = message.removeprefix("unrecognized arguments:").split() if message[0] == "u" else words
+        hints = []
+        for word in unknown:
+            flag = word.split("=", 1)[0]
+            if not flag.startswith("--") or flag in flags:
+                continue
+            same = [k for k in known if k.lower() == flag.lower()]
+            close = same or difflib.get_close_matches(flag, known, n=1, cutoff=0.75)
+            if close:
+                hints.append(f"{flag} -> {close[0]}")
+        return f"; did you mean {', '.join(hints)}?" if hints else ""
 
 
 def _clean(value: Any) -> Any:
@@ -105,6 +135,19 @@ def emit_json(obj: dict[str, Any]) -> None:
 _KIND_NAMES = {int: "integer", float: "float", str: "string"}
 
 
+def _integer(text: str) -> int:
+    """A count from the command line: ``100000``, or an integral value in scientific notation
+    (``1e5``, ``2.5e6``); ``1.5`` or ``1e-3`` is a ValueError (a count is a whole number)."""
+    try:
+        return int(text)
+    except ValueError:
+        pass
+    value = float(text)  # a ValueError for text that is no number at all
+    if not (math.isfinite(value) and value.is_integer() and abs(value) < 2.0**63):
+        raise ValueError(f"{text!r} is not a whole number")
+    return int(value)
+
+
 def _typed(kind: type, check, message: str | None = None) -> Any:
     """An argparse type: ``kind(text)``, then ``check(value)``.
 
@@ -114,9 +157,10 @@ def _typed(kind: type, check, message: str | None = None) -> Any:
 
     def parse(text: str):
         try:
-            value = kind(text)
+            value = _integer(text) if kind is int else kind(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"invalid {_KIND_NAMES[kind]} value: {text!r}") from None
+            whole = " (a whole number: 100000 or 1e5)" if kind is int else ""
+            raise argparse.ArgumentTypeError(f"invalid {_KIND_NAMES[kind]} value: {text!r}{whole}") from None
         try:
             return check(value)
         except ParameterError as exc:

@@ -76,26 +76,58 @@ def _number(value: float, spec: str) -> str:
     return "n/a" if value is None or math.isnan(value) else format(value, spec)
 
 
+def _theory_line(report: dict[str, Any]) -> str:
+    """The closed form beside A: its value, its equation and the distance in standard errors, or
+    why there is none."""
+    from .. import theory
+    from ..params import MapParams
+
+    a_theory = report["A_theory"]
+    if a_theory is None:
+        return "  theory      : none at K != 3 (the closed forms of Sec. IV hold at K = 3 only)"
+    domain = theory.domain(MapParams(report["K"], report["b1"], report["b2"]))
+    source = {"LR": "Eq. (Aa)", "L": "Eq. (Ab), mirrored", "R": "Eq. (Ab)"}.get(domain, "no island: 0")
+    line = f"  theory      = {a_theory:.6g} /iteration, {source}"
+    stderr, a = report["A_stderr"], report["A"]
+    if a is not None and stderr and math.isfinite(a) and math.isfinite(stderr) and stderr > 0:
+        line += f": A - theory = {(a - a_theory) / stderr:+.2f} standard errors"
+    return line
+
+
+def _chaos_line(report: dict[str, Any]) -> str:
+    """The Lyapunov exponent and the FTLE threshold behind "chaotic", named with its rule."""
+    from ..observables import lyapunov_threshold, rule_formula
+
+    threshold, rule = report["threshold"], report.get("threshold_rule", "strict")
+    named = f"FTLE > {_number(threshold, '.3g')}"
+    if threshold == lyapunov_threshold(report["steps"], rule):
+        named += f" = {rule_formula(rule)} at n = {report['steps']} (rule {rule})"
+    return (
+        f"  lyapunov    = {_number(report['lyapunov'], '.6g')} /iteration "
+        f"(min {_number(report['lyapunov_min'], '.4g')}) over the chaotic points, "
+        f"{report['chaotic_fraction']:.4f} of all: {named}"
+    )
+
+
 def print_report(report: dict[str, Any], as_json: bool) -> None:
-    """:func:`run_report` as one JSON object, or as four lines for a human (five if A is unreliable)."""
+    """:func:`run_report` as one JSON object, or as lines for a human: A with one standard error
+    and its units, the closed form and the distance to it in standard errors, the FTLE threshold
+    behind "chaotic", the convergence verdict, what was written."""
     if as_json:
         emit_json(report)
         return
-    a_theory = report["A_theory"]
     print(
         f"{map_text(report)}: {report['points']} points x {report['steps']} steps "
         f"({report['init']}, seed {report['seed']})"
     )
     print(
-        f"  A           = {_number(report['A'], '.6g')} +- {_number(report['A_stderr'], '.2g')}"
-        + ("" if a_theory is None else f"   (theory {a_theory:.6g})")
+        f"  A           = {_number(report['A'], '.6g')} +- {_number(report['A_stderr'], '.2g')} /iteration"
+        " (+- one standard error; momentum in units of the map's period)"
     )
+    print(_theory_line(report))
     if not report["reliable"]:
         print(f"  UNRELIABLE  : {report['reason']}")
-    print(
-        f"  lyapunov    = {_number(report['lyapunov'], '.6g')} (min {_number(report['lyapunov_min'], '.4g')})"
-        f" over {report['chaotic_fraction']:.4f} of the points"
-    )
+    print(_chaos_line(report))
     if report.get("verdict") is not None:
         print(
             f"  convergence : A_n - A_n/2 = {_number(report['drift'], '+.2g')} "
@@ -108,6 +140,12 @@ def print_report(report: dict[str, Any], as_json: bool) -> None:
         print(format_transport(report["transport"]))
     if report["point_steps_per_second"]:
         print(f"  {report['seconds']:.2f} s, {report['point_steps_per_second'] / 1e6:.0f} M point-steps/s")
+    if report.get("recording"):
+        import os
+
+        path = report["recording"]
+        size = os.path.getsize(path) / 1e6 if os.path.exists(path) else 0.0
+        print(f"  wrote {path}: {report.get('recording_frames')} frames, {size:.1f} MB (view: rerun {path})")
 
 
 def history_report(history, threshold_rule: str) -> dict[str, Any]:
@@ -229,5 +267,6 @@ def command(args: argparse.Namespace) -> int:
         report["archive"] = args.out
     if recorder is not None and args.rerun is not None:
         report["recording"] = args.rerun
+        report["recording_frames"] = len(recorder.frames)
     print_report(report, args.json)
     return 0

@@ -64,6 +64,11 @@ def _print_census(result, out: dict) -> None:
             f"  {'?':>8} {'':>4} {'':>3} {result.unidentified_area:10.6f}  "
             f"{result.unidentified_area_stderr:9.2g}  (regular, no nu with m <= {result.m_max})"
         )
+    print(
+        f"  C: chaotic by {result.classifier} and locked to no nu; by {result.classifier} alone "
+        f"(islands' chaotic points too) S_C = {result.S_C_indicator:.6f} {err} "
+        f"{result.S_C_indicator_stderr:.2g}"
+    )
     for key in ("A_sumrule", "A_direct", "A_force", "torus_mean_A"):
         spread = out.get(f"{key}_stderr")
         label = err if key == "A_sumrule" else "+-"  # means over points always carry a standard error

@@ -22,5 +22,13 @@ def command(args: argparse.Namespace) -> int:
         emit_json(summary)
     else:
         for key, value in summary.items():
-            print(f"{key:>7} = {'n/a' if value is None else value}")
+            print(f"{key:>7} = {'n/a' + _why_absent(summary) if value is None else value}")
     return 0
+
+
+def _why_absent(summary: dict) -> str:
+    """Why a closed form is absent at these parameters, as printed after ``n/a``."""
+    if summary["K"] != 3.0:
+        k = summary["K"]
+        return f" (the closed forms of Sec. IV hold at K = 3 only, not K = {k}; try warpratchet sumrule)"
+    return " (domain none: no accelerator-mode island, and the paper gives no formula for S_C)"

@@ -102,9 +102,32 @@ class Census:
                 return item
         return None
 
+    @property
+    def S_C_indicator(self) -> float:
+        """The chaotic area by the indicator alone: ``S_C`` plus the points of every island class
+        that the indicator calls chaotic (chaotic layers inside islands, orbits stuck to them).
+
+        ``S_C`` of the census (and of the sum rule, Eq. sum) is narrower: a point locked to a
+        class ``nu`` counts as island whatever its indicator says.
+        """
+        return self.S_C + sum(item.area * item.chaotic_fraction for item in self.islands)
+
+    @property
+    def S_C_indicator_stderr(self) -> float:
+        """Its standard error (binomial, as ``S_C_stderr``; a bound for a grid census likewise)."""
+        if self.S_C <= 0 or not self.S_C_stderr:
+            return self.S_C_stderr
+        return self.S_C_stderr * float(
+            np.sqrt(self.S_C_indicator * (1 - self.S_C_indicator)) / np.sqrt(self.S_C * (1 - self.S_C))
+        )
+
     def as_dict(self) -> dict:
-        """Plain dict (the JSON of ``warpratchet sumrule --json``)."""
-        return asdict(self)
+        """Plain dict (the JSON of ``warpratchet sumrule --json``), with ``S_C_indicator`` and its error."""
+        return {
+            **asdict(self),
+            "S_C_indicator": self.S_C_indicator,
+            "S_C_indicator_stderr": self.S_C_indicator_stderr,
+        }
 
 
 def lattice(side: int) -> tuple[np.ndarray, np.ndarray]:
