@@ -1,4 +1,4 @@
-"""``python -m viz transport``: return-time and flight distributions, and orbits on the torus (issue 16).
+"""``python -m viz transport``: return-time and flight distributions, and orbits on the torus.
 
 Two figures built on the public API:
 

@@ -373,7 +373,7 @@ class Ensemble:
 
         ``threshold`` (or, when it is None, ``rule``) as ``summarize`` takes them. Computed once per
         step and threshold: the history's row, the archive's series row and the run's report at
-        the same step share it (bitwise the same Summary; a summary of 10^6 points is ~50 ms).
+        the same step share it (bitwise the same Summary).
 
         Warns with :class:`~warpratchet.observables.UnreliableWarning` when the run is too short,
         or has too few chaotic points, to estimate A (``Summary.reliable`` is False; ``reason``

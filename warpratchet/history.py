@@ -1,4 +1,4 @@
-"""The history of a run: ensemble summaries at log-spaced global steps, and block gains (issue 15).
+"""The history of a run: ensemble summaries at log-spaced global steps, and block gains.
 
 One number per run hides convergence: near islands orbits stick for heavy-tailed times, and
 ``A_n`` of Eq. (An) can still drift when the run ends. A :class:`History` observer records two
@@ -89,7 +89,7 @@ HISTORY_FIELDS = (
 INT_FIELDS = ("step", "chaotic_points")
 #: Per-block records: the step, and ``(M,)`` arrays of the subsample's gain and FTLE.
 BLOCK_FIELDS = ("block_step", "block_gain", "block_ftle")
-#: Rows per decade of n (the issue asks for at least 8).
+#: Rows per decade of n (at least 8, enough to see a drift between decades).
 PER_DECADE = 8
 #: Equal time blocks of the robust standard error (:func:`warpratchet.convergence.robust_stderr`).
 BLOCKS = 64

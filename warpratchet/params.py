@@ -23,7 +23,7 @@ import numpy as np
 
 from .errors import ParameterError, check_real
 
-# check_real is re-exported: it was params.check_real before errors.py held the one validator set.
+# check_real is re-exported for callers that import it from here (its home is errors.py).
 __all__ = ["MapParams", "check_real"]
 
 

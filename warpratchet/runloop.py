@@ -5,7 +5,7 @@ stop only *between* chunks. Three guarantees follow from that:
 
 * **Consistent on Ctrl-C.** A Warp launch cannot be cancelled, and a chunk runs as several
   launches (one per CPU thread): stopping halfway would leave some points a chunk ahead of the
-  step counter (issue 14: ``ens.step`` 0, the arrays at step 20000, every later ``A_n`` divided
+  step counter (``ens.step`` 0, the arrays at step 20000, every later ``A_n`` divided
   by the wrong ``n``). So while the loop runs, SIGINT is *deferred*: the handler notes it, the
   chunk in flight and the observers' ``after_chunk`` finish, every observer's ``end`` runs, and
   then the original handler is called (Python's raises :class:`KeyboardInterrupt`). The
@@ -59,19 +59,11 @@ def default_threads() -> int:
 
 
 def default_chunk_steps(points: int) -> int:
-    """Steps per chunk: about 2.5e8 point-steps (~0.2-0.4 s here), between 16 and 10^5 steps.
+    """Steps per chunk: about 2.5e8 point-steps, between 16 and 10^5 steps.
 
-    Long enough that per-chunk Python work (observers, progress) is noise, short enough that
-    progress bars move and a checkpoint is never far behind.
-
-    What a chunk end costs the kernels (measured for issue 16, 10^6 points, one thread, CPU time
-    of launches of 0 steps): a launch loads and stores the state, ~10 ms for ``advance_map``
-    (~5% of a 250-step chunk at ~1.2e9 point-steps/s), ~2 ms more for ``advance_map_transport``
-    (its carry). Kept at 2.5e8: a transport run of 12 000 steps ends 123 chunks, of which only 30
-    are regular chunk ends (the rest are History rows and block ends), so longer chunks would not
-    move ``--transport``'s ratio; by that launch cost, a plain run of 10^6 points x 120 000 steps
-    would save ~3% with 4x longer chunks (an estimate, not measured), at the price of 4x slower
-    progress, Ctrl-C and default checkpoints.
+    Long enough that per-chunk Python work (observers, progress) and the launch's load and store
+    of the state are small beside the kernel, short enough that progress bars move, Ctrl-C answers
+    soon and a checkpoint is never far behind (the cost of a chunk end: benchmarks/README.md).
     """
     return int(min(100_000, max(16, 250_000_000 // max(points, 1))))
 

@@ -1,4 +1,4 @@
-"""The optional ``/transport`` group of an archive (feature ``"transport"``, issue 16).
+"""The optional ``/transport`` group of an archive (feature ``"transport"``).
 
 An archive of a :class:`~warpratchet.transport.TransportEnsemble` run holds, besides the usual
 layout:

@@ -34,7 +34,7 @@ def add(sub) -> None:
         "--transport",
         action="store_true",
         help="also count return times to the strip B and flights (log2 histograms), and fit the "
-        'diffusion exponent mu and the tail exponents: adds "transport" to --json (issue 16)',
+        'diffusion exponent mu and the tail exponents: adds "transport" to --json',
     )
     add_archive_flags(p)
     add_rerun_flags(p)

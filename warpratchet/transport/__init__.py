@@ -1,4 +1,4 @@
-"""Transport beyond the mean (issue 16): return times to B, flights, anomalous diffusion.
+"""Transport beyond the mean: return times to B, flights, anomalous diffusion.
 
 * :class:`TransportEnsemble` (:mod:`.ensemble`): an ensemble whose runs also count, in the kernel
   (:mod:`warpratchet.kernels.transport`), the return times to the strip B (Eq. B) and the flights

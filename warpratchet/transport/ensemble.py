@@ -56,7 +56,7 @@ class TransportEnsemble(Ensemble):
 
     Same constructor, samplers and :meth:`run` as ``Ensemble``; the orbit and tangent are
     bitwise a plain ensemble's. Counting starts at the ensemble's step: a point then in B counts
-    its first return gap from that step, any other from its first visit (issue 16).
+    its first return gap from that step, any other from its first visit (docs/transport.md).
     """
 
     _kernel = advance_map_transport
@@ -132,7 +132,7 @@ class TransportEnsemble(Ensemble):
         """Every point's FTLE at ``step`` if this chunk end's spread row computed it, else None.
 
         :meth:`summary` (a History row at the same step) takes it instead of computing the same
-        values again (the costly part of a summary, ~20 ms per 10^6 points).
+        values again (the costly part of a summary).
         """
         known = self._known_ftle
         return known[1] if known is not None and known[0] == step == self.step else None
