@@ -41,8 +41,7 @@ import numpy as np
 from _sink_overhead import INIT, PARAMS, SEED, compare, emit, log, measure_cases, options, warm_up
 
 from warpratchet import Ensemble
-from warpratchet.recording import DEFAULT_MAX_POINTS, RecordingSink, require_rerun
-from warpratchet.recording.scene import blueprint
+from warpratchet.recording import DEFAULT_MAX_POINTS, RecordingSink, blueprint, require_rerun
 
 BUDGET = 1.10
 #: (points, steps): 1.2e9 point-steps each, from a small to a subsampled large ensemble.

@@ -31,7 +31,7 @@ from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from .limits import MAX_POINTS, MAX_STEP, check_kernel_range, check_memory, format_bytes
 from .observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, Summary, summarize
 from .params import MapParams
-from .runloop import Observer, archive_sink, check_observers, default_chunk_steps, default_threads, run_chunks
+from .runloop import Observer, check_observers, default_chunk_steps, default_threads, open_sink, run_chunks
 from .sampling import _BUILD_CHUNK, grid_nodes, sample_grid, sample_strip, sample_torus, sampled_chunks
 from .spec import MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS
 from .state import STATE_FIELDS, check_initial, check_state, initial_state
@@ -337,7 +337,7 @@ class Ensemble:
         observers = check_observers(observers)
         sink = None
         if archive is not None:
-            sink = archive_sink(self, archive, chunk_steps)
+            sink = open_sink("archive", self, archive, chunk_steps)
             if sink.history is not None:
                 observers.append(sink.history)  # its rows end chunks at their steps
             observers.append(sink)

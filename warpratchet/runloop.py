@@ -33,7 +33,7 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -44,7 +44,8 @@ __all__ = [
     "check_observers",
     "deferred_interrupts",
     "run_chunks",
-    "archive_sink",
+    "register_sink",
+    "open_sink",
     "default_threads",
     "default_chunk_steps",
 ]
@@ -226,45 +227,20 @@ def run_chunks(
             _end_all(ensemble, began)
 
 
-def archive_sink(ensemble: Any, path: str | os.PathLike, chunk_steps: int | None) -> Any:
-    """The ArchiveSink of ``Ensemble.run(archive=path)``: a new archive, or this run's to append to.
+#: Sinks that :meth:`Ensemble.run <warpratchet.ensemble.Ensemble.run>` opens by keyword
+#: (``archive=path``): keyword -> ``factory(ensemble, target, chunk_steps)``. The packages that
+#: provide them sit above the run loop, so they register here and the loop never imports them.
+_SINKS: dict[str, Callable[[Any, Any, int | None], Any]] = {}
 
-    A new archive keeps the run's :class:`~warpratchet.history.History` (``sink.history``, an
-    observer of the run too).
 
-    An existing file is appended to only if it is an archive whose checkpoint holds exactly this
-    ensemble (same step, every state array equal bit for bit): what a previous ``run(...,
-    archive=path)`` of this ensemble leaves when it completes. Anything else is refused, so an
-    archive never mixes two runs.
-    """
-    # Imported here: archives sit above the run loop (they observe runs), and only this
-    # convenience of Ensemble.run reaches up to them.
-    import numpy as np
+def register_sink(keyword: str, factory: Callable[[Any, Any, int | None], Any]) -> None:
+    """Let ``Ensemble.run(keyword=target)`` open its sink with ``factory(ensemble, target, chunk_steps)``."""
+    _SINKS[keyword] = factory
 
-    from .archive import ArchiveSink, open_archive
-    from .history import History
 
-    if not os.path.lexists(path):
-        return ArchiveSink(path, ensemble, chunk_steps=chunk_steps, threshold=None, history=History())
-    with open_archive(path) as arc:
-        state, step = arc.checkpoint()
-        params = arc.params
-    same = (
-        params == ensemble.params
-        and step == ensemble.step
-        and all(np.array_equal(state[name], ensemble.array(name)) for name in state)
-    )
-    if not same:
-        raise ValueError(
-            f"{os.fspath(path)} exists and does not hold this ensemble at step {ensemble.step} "
-            f"(its checkpoint is at step {step}); choose a new path, or continue that run from "
-            "open_archive(path).ensemble()"
-        )
-    sink, _ = ArchiveSink.resume(path, threads=ensemble.threads, device=ensemble.device)
-    if chunk_steps is not None and chunk_steps != sink.chunk_steps:
-        sink.close()
-        raise ValueError(
-            f"chunk_steps = {chunk_steps} differs from the archive's chunk_steps = {sink.chunk_steps}"
-        )
-    sink.ensemble = ensemble  # the restored twin equals this ensemble bit for bit (checked above)
-    return sink
+def open_sink(keyword: str, ensemble: Any, target: Any, chunk_steps: int | None) -> Any:
+    """The sink that ``Ensemble.run(keyword=target)`` asks for, from its registered factory."""
+    factory = _SINKS.get(keyword)
+    if factory is None:
+        raise ValueError(f"{keyword}= has no sink registered; import warpratchet first")
+    return factory(ensemble, target, chunk_steps)

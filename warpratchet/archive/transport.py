@@ -26,6 +26,7 @@ import numpy as np
 from ..glossary import describe
 from ..transport.fits import GROUPS
 from ..transport.histograms import BINS, CARRY_FIELDS, HISTOGRAMS
+from ..transport.report import counts_transport
 from .checks import read_counter, reading, valid_rows
 from .checks import refresh as _refresh
 from .layout import ROW_CHUNK, STATE_CHUNK, _group, _set_attrs
@@ -91,11 +92,6 @@ class TransportRows(Rows):
 
     def __init__(self, f: h5py.File, count: int) -> None:
         super().__init__(f["transport"], ("step", "counts"), f["transport"]["rows"], count)
-
-
-def counts_transport(ensemble: Any) -> bool:
-    """Whether ``ensemble`` counts return times and flights (a ``TransportEnsemble``)."""
-    return callable(getattr(ensemble, "transport_state", None))
 
 
 class TransportWriter:

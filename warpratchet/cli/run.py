@@ -45,7 +45,7 @@ def run_report(
 ) -> dict[str, Any]:
     """The JSON object of ``run`` and ``resume``: parameters, A, FTLE statistics, speed."""
     from .. import theory
-    from ..archive.transport import counts_transport
+    from ..transport import counts_transport
 
     # The summary the run's history (and archive) computed at this step already, not a new one.
     summary = ensemble.summary(threshold, threshold_rule, warn=False).as_dict()
@@ -100,7 +100,7 @@ def print_report(report: dict[str, Any], as_json: bool) -> None:
             f"{_number(report['A_stderr_robust'], '.2g')}: {report['verdict']}"
         )
     if "transport" in report:
-        from ..transport.report import format_transport
+        from ..transport import format_transport
 
         print(format_transport(report["transport"]))
     if report["point_steps_per_second"]:

@@ -7,7 +7,9 @@
 * :mod:`.twin`: the kernel's NumPy twin (tests).
 """
 
+from .fits import bin_masses
 from .histograms import BINS, CARRY_FIELDS, HISTOGRAMS, Histograms, bin_of, edges, open_runs
+from .report import counts_transport, format_transport
 
 __all__ = [
     "BINS",
@@ -15,8 +17,11 @@ __all__ = [
     "HISTOGRAMS",
     "Histograms",
     "TransportEnsemble",
+    "bin_masses",
     "bin_of",
+    "counts_transport",
     "edges",
+    "format_transport",
     "open_runs",
 ]
 
