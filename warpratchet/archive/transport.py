@@ -182,6 +182,4 @@ def restore(
     from ..transport import TransportEnsemble
 
     ensemble = TransportEnsemble.from_state(params, state, step, transport=transport, **kwargs)
-    ensemble.threshold = threshold
-    ensemble.threshold_rule = threshold_rule
-    return ensemble
+    return ensemble.classify_with(threshold, threshold_rule)

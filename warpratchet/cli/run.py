@@ -172,8 +172,8 @@ def _sample(args: argparse.Namespace, spec: RunSpec):
     ensemble = kind.sample(
         spec.params, spec.points, spec.init, spec.seed, device=spec.device, threads=spec.threads
     )
-    ensemble.threshold = spec.threshold
-    ensemble.threshold_rule = spec.threshold_rule
+    if args.transport:
+        ensemble.classify_with(spec.threshold, spec.threshold_rule)  # its spread's chaotic points
     return ensemble
 
 
