@@ -13,7 +13,9 @@ package ``warpratchet.archive``, ``from .archive.reader import Archive`` one to
 * front ends (cli, viz, benchmarks) import the public API only: ``warpratchet`` and its public
   top-level modules and packages, never a private module (``_name``) nor a module inside a
   subpackage, which is that package's implementation;
-* pure modules import no Warp, HDF5, progress bar, viewer, plotting or cluster library.
+* pure modules import no Warp, HDF5, progress bar, viewer, plotting or cluster library, and
+  importing one loads none of them (its package's face included; :data:`HEAVY_FACES` lists
+  the two faces that still do).
 
 The few front-end arrows that the code needs today and the rules refuse are listed in
 :data:`EXCEPTIONS`, each with its reason; an exception the code no longer needs fails too.
@@ -22,7 +24,10 @@ The few front-end arrows that the code needs today and the rules refuse are list
 from __future__ import annotations
 
 import ast
+import json
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -227,3 +232,29 @@ def test_front_ends_use_the_public_api_only():
 def test_pure_modules_import_no_device_files_or_terminal(module):
     _, theirs = GRAPH[module]
     assert sorted(theirs & NOT_PURE) == []
+
+
+#: Pure modules whose package face loads more than they do, with the reason.
+_SWEEP_FACE = "warpratchet/sweep/__init__.py imports the sweep runner (Warp) and the sweep file (HDF5)"
+HEAVY_FACES = {"warpratchet.sweep.paths": _SWEEP_FACE, "warpratchet.sweep.records": _SWEEP_FACE}
+
+
+def _loaded_by(names: list[str]) -> list[str]:
+    """The device and file libraries a fresh interpreter holds after importing ``names``."""
+    script = (
+        "import json, sys\n"
+        f"for name in {names!r}:\n"
+        "    __import__(name)\n"
+        "print(json.dumps(sorted(k for k in ('warp', 'h5py', 'tqdm', 'rerun') if k in sys.modules)))\n"
+    )
+    argv = [sys.executable, "-c", script]
+    proc = subprocess.run(argv, capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+def test_importing_a_pure_module_loads_no_device_or_file_library():
+    # What the import statements alone cannot show: a package's __init__ runs first.
+    assert _loaded_by([m for m in sorted(MODULES) if _layer_of(m) == 0 and m not in HEAVY_FACES]) == []
+    for name in HEAVY_FACES:  # each exception still needed
+        assert _loaded_by([name]) != []
