@@ -53,12 +53,12 @@ EXCEPTIONS = {
         "exists for that comparison and is no public API"
     ),
     ("warpratchet.cli.verify", "warpratchet._files"): (
-        "the lock claim and the live-file open (claim, open_h5) have no public face yet: the file "
-        "primitives move with the regrouping of archive/ (docs/architecture.md, Rooms to regroup)"
+        "the lock claim and the live-file open (claim, open_h5) have no public face yet "
+        "(docs/architecture.md, Rooms to regroup)"
     ),
     ("viz.report", "warpratchet._files"): (
-        "the atomic write (temporary_beside, publish) has no public face yet: the file "
-        "primitives move with the regrouping of archive/ (docs/architecture.md, Rooms to regroup)"
+        "the atomic write (temporary_beside, publish) has no public face yet "
+        "(docs/architecture.md, Rooms to regroup)"
     ),
 }
 
