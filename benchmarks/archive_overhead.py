@@ -10,7 +10,7 @@ Each case advances a fresh strip ensemble (Eq. B) at K = 3, b1 = 0.1, b2 = 0.01 
   creating the file (with the initial state), every row and checkpoint (with their fsyncs) and
   closing it,
 
-and reports the ratio of the best wall times (issue 3's budget: at most 1.05 at the default
+and reports the ratio of the best wall times (the budget: at most 1.05 at the default
 settings, the first case: 10^4 points x 1.2e5 steps), the ratio of the best process CPU times,
 and the archive's own share measured directly: the seconds spent inside the sink (creation,
 ``after_chunk``, ``end``, ``close``) over the kernel seconds of the same run. On a machine

@@ -40,7 +40,7 @@ from warpratchet import Ensemble, MapParams
 from warpratchet.observables import default_lyapunov_threshold, lyapunov
 from warpratchet.sumrule import CLASSIFIERS, IndicatorEnsemble, chaotic_by
 
-#: (K, b1, b2): the issue's two K at b1 = 0.1, b2 = 0.01, and one more point each
+#: (K, b1, b2): two K at b1 = 0.1, b2 = 0.01, and one more point each
 #: (Fig. 12's domain-R point at K = 3, Fig. 9's path at K = 2.99).
 CASES = [(3.0, 0.1, 0.01), (2.99, 0.1, 0.01), (3.0, 0.3, 0.03), (2.99, 0.25, 0.05)]
 TARGET = 0.999

@@ -1,4 +1,4 @@
-"""Cost of a run's history (issue 15): wall time with a History observer over wall time without.
+"""Cost of a run's history: wall time with a History observer over wall time without.
 
 Each case advances a fresh strip ensemble (Eq. B) at K = 3, b1 = 0.1, b2 = 0.01 (seed 1) by
 ``steps`` iterations twice per repetition, alternately
@@ -8,7 +8,7 @@ Each case advances a fresh strip ensemble (Eq. B) at K = 3, b1 = 0.1, b2 = 0.01 
   rows (a summary of every point) at >= 8 log-spaced steps per decade, n/2 and n, and the
   momentum gains of 4096 points at 64 block ends, each of those steps ending a chunk,
 
-and reports the ratio of the best wall times (issue 15's budget: under 1.05 at 10^4 points x
+and reports the ratio of the best wall times (the budget: under 1.05 at 10^4 points x
 1.2e5 steps and at 10^6 points), the ratio of the best process CPU times, and the history's own
 share measured directly: the seconds spent inside the observer over the kernel seconds of the
 same run (the steadiest of the three on a shared machine; it leaves out what the extra chunk ends

@@ -1,6 +1,6 @@
 """Cost of the chaos indicators: ``advance_map_indicators`` against ``advance_map``, interleaved.
 
-Issue 12 asks that the indicators kernel (MEGNO and the FLI: one ``fdlog`` per point every 8 steps,
+The target: the indicators kernel (MEGNO and the FLI: one ``fdlog`` per point every 8 steps,
 :mod:`warpratchet.kernels.indicators`) run at >= 0.8 of ``advance_map``'s throughput. On a shared
 machine a single timing of each says little, so this script times the two kernels alternately,
 many short launches each (the order flips every round, so a slow spell hits both), on the state
@@ -41,7 +41,7 @@ from warpratchet.ensemble import default_threads
 from warpratchet.kernels.indicators import INDICATOR_FIELDS
 
 PARAMS = MapParams(K=3.0, b1=0.1, b2=0.01)
-#: Issue 12: the indicators kernel at least this fraction of ``advance_map``'s throughput (throughput.py
+#: The target: the indicators kernel at least this fraction of ``advance_map``'s throughput (throughput.py
 #: reports it too).
 TARGET = 0.8
 WARMUP_STEPS = 1024
@@ -138,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
     else:
         print(
             f"advance_map_indicators / advance_map, {args.points:,} points x {args.steps} steps per launch, "
-            f"{args.rounds} rounds (load average at start {load[0]:.2f}); issue 12 asks >= {TARGET}"
+            f"{args.rounds} rounds (load average at start {load[0]:.2f}); the target is >= {TARGET}"
         )
         print(
             f"{'threads':>7}{'map Mpt/s':>11}{'ind. Mpt/s':>12}{'best':>7}  per wall s (median [range])"

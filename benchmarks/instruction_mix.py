@@ -1,4 +1,4 @@
-"""Instruction mix of the step loop of the compiled CPU kernels (issue 12: object-code evidence).
+"""Instruction mix of the step loop of the compiled CPU kernels (object-code evidence of vectorisation).
 
 Compiles (or loads from Warp's kernel cache) the CPU module of :mod:`warpratchet.kernels`,
 disassembles its object file with ``objdump -d`` and, for each kernel, finds the step loop: the

@@ -1,4 +1,4 @@
-"""Peak resident memory of a run against the size of its state (issue 12, item 7).
+"""Peak resident memory of a run against the size of its state.
 
 The state is 56 bytes per point (x, q, winding, p0, dx, dp, log_stretch). For each ensemble
 size, three child processes are measured, each on its own (``os.wait4`` gives the peak resident
@@ -10,7 +10,7 @@ set, ``ru_maxrss``, of that one child):
   (ensemble, run, and the summary of A and the FTLE that it prints).
 
 Reported per size: each peak, ``peak / state`` and ``(peak - baseline) / state``, and whether the
-peak is within ``1.3 x state + 300 MiB`` (the issue's bound: 1.3 times the state plus a fixed few
+peak is within ``1.3 x state + 300 MiB`` (the bound: 1.3 times the state plus a fixed few
 hundred MB). A few steps suffice: memory does not grow with the steps.
 
 Usage::

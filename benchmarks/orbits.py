@@ -32,7 +32,7 @@ from warpratchet import MapParams, theory
 from warpratchet.orbits import KINDS, enumerate_orbits, orbit_families
 from warpratchet.orbits.words import SYMBOLS, all_words, compose, fixed_points
 
-#: (K, b1, b2): the brief's two cases (Fig. 7's range at K = 3, Fig. 9's path at K = 2.99).
+#: (K, b1, b2): two cases (Fig. 7's range at K = 3, Fig. 9's path at K = 2.99).
 CASES = [(3.0, 0.1, 0.01), (2.99, 0.25, 0.05)]
 
 

@@ -9,7 +9,7 @@ Each case advances a fresh strip ensemble (Eq. B) at K = 3, b1 = 0.1, b2 = 0.01 
   speed measured by a probe), exactly what ``warpratchet run --rerun`` does; the time includes
   the probe, opening the file, every frame and the final flush,
 
-and reports the ratio of the best wall times (the issue's budget is 1.10) and of the best
+and reports the ratio of the best wall times (the budget is 1.10) and of the best
 process CPU times (all threads, including rerun's writer): on a machine shared with other
 jobs the CPU-time ratio is the steadier of the two. Both runs must end in
 bitwise equal states (recording never changes results); the script exits with status 1 if not.
@@ -41,8 +41,7 @@ import numpy as np
 from _sink_overhead import INIT, PARAMS, SEED, compare, emit, log, measure_cases, options, warm_up
 
 from warpratchet import Ensemble
-from warpratchet.recording import DEFAULT_MAX_POINTS, RecordingSink, require_rerun
-from warpratchet.recording.scene import blueprint
+from warpratchet.recording import DEFAULT_MAX_POINTS, RecordingSink, blueprint, require_rerun
 
 BUDGET = 1.10
 #: (points, steps): 1.2e9 point-steps each, from a small to a subsampled large ensemble.

@@ -37,7 +37,7 @@ def test_the_paper_ensemble_reproduces_the_caption_sigma(b2):
     target = ENDS[b2]
     for init, rule, agree in (("torus", "positive", True), ("strip", "strict", False)):
         ens = Ensemble.sample(params, paper.POINTS, init, seed=11).run(paper.STEPS)
-        s = summarize(ens.state(), ens.step, rule=rule)
+        s = summarize(ens.state(), ens.step, threshold_rule=rule)
         se = s.lyapunov_std / math.sqrt(s.chaotic_points)
         if agree:
             assert abs(s.lyapunov - target) < 4 * se + ROUNDING, (init, s.lyapunov, se)

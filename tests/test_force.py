@@ -377,3 +377,13 @@ def test_a_flat_piece_makes_families_of_parabolic_orbits_that_the_map_returns_ex
         end, jac = walk(z)
         assert np.max(np.abs((end - z + 0.5) % 1.0 - 0.5)) < 1e-12
         assert np.allclose(jac, np.eye(2)) or np.isclose(np.trace(jac), 2.0)  # parabolic: tr DM^3 = 2
+
+
+def test_run_says_why_another_force_has_no_closed_form(capsys):
+    """At K = 3 the report must not blame K for the missing theory: the force is the reason."""
+    from warpratchet.cli import main
+
+    argv = ["run", "--K", "3", "--knots", "0,0.25,0.75,0.95", "--values", " -0.2,0.3,0,-0.66"]
+    assert main([*argv, "--points", "64", "--steps", "64", "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "theory      : none for this force" in out and "K != 3" not in out

@@ -193,19 +193,39 @@ def test_a_drifting_history_is_reported_as_drifting():
 
 def test_threshold_rules_and_their_rows():
     ens = Ensemble.sample(MapParams(2.99, 0.25, 0.005), 1000, "torus", seed=1)
-    strict, positive = History(), History(rule="positive")
+    strict, positive = History(), History(threshold_rule="positive")
     ens.run(4000, [strict, positive])
     assert positive.rows["chaotic_points"][-1] > strict.rows["chaotic_points"][-1]
-    s = summarize(ens.state(), 4000, rule="positive")
+    s = summarize(ens.state(), 4000, threshold_rule="positive")
     assert (s.A, s.lyapunov) == (positive.rows["A"][-1], positive.rows["sigma"][-1])
     assert s.threshold == lyapunov_threshold(4000, "positive")
     assert lyapunov_threshold(4000, "strict") == 10.0 * (1.0 + math.log(4000)) / 4000
     assert lyapunov_threshold(4000, "positive") == (1.0 + math.log(4000)) / 4000
     with pytest.raises(ValueError, match="threshold_rule = 'loose' is not one of strict, positive"):
-        History(rule="loose")
+        History(threshold_rule="loose")
     with pytest.raises(ValueError, match="threshold = 0.01 and threshold_rule = 'positive' both given"):
         RunSpec(K=3, b1=0.1, b2=0.01, threshold=0.01, threshold_rule="positive")
     assert set(THRESHOLD_RULES) == set(RULE_FACTORS)
+
+
+def test_the_former_keyword_rule_still_works_and_says_its_new_name():
+    # One name, threshold_rule, across the API; rule= keeps working for the code that has it.
+    ens = Ensemble.sample(MapParams(3.0, 0.1, 0.01), 200, "strip", seed=1).run(50)
+    state = ens.state()
+    with pytest.warns(DeprecationWarning, match=r"summarize\(rule=\.\.\.\) is spelled threshold_rule="):
+        old = summarize(state, 50, rule="positive")
+    assert old == summarize(state, 50, threshold_rule="positive")
+    with pytest.warns(DeprecationWarning, match="threshold_rule"):
+        assert ens.summary(rule="positive", warn=False) == ens.summary(threshold_rule="positive", warn=False)
+    with pytest.warns(DeprecationWarning, match="threshold_rule"):
+        assert lyapunov_threshold(50, rule="positive") == lyapunov_threshold(50, "positive")
+    with pytest.warns(DeprecationWarning, match="threshold_rule"):
+        history = History(rule="positive")
+    assert history.threshold_rule == "positive"
+    with pytest.warns(DeprecationWarning, match="History.rule is spelled History.threshold_rule"):
+        assert history.rule == "positive"
+    with pytest.raises(TypeError, match="give threshold_rule= only"):
+        summarize(state, 50, rule="strict", threshold_rule="positive")
 
 
 def test_run_json_carries_the_history_and_the_verdict(capsys):
@@ -240,7 +260,7 @@ def test_an_archive_refuses_a_history_it_cannot_keep(tmp_path):
     from warpratchet.archive import ArchiveSink
 
     ens = Ensemble.sample(PARAMS, 100, "strip", seed=1)
-    with pytest.raises(ValueError, match="classifies with threshold = None, rule = 'strict'; the archive"):
+    with pytest.raises(ValueError, match="threshold = None, threshold_rule = 'strict'; the archive"):
         ArchiveSink(tmp_path / "a.h5", ens, threshold_rule="positive", history=History())
     used = History()
     ens.run(100, [used])

@@ -267,3 +267,14 @@ def test_the_cli_refuses_a_flagged_launch_in_one_line_with_status_1(monkeypatch,
     assert code == 1 and captured.out == "", captured
     lines = captured.err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("warpratchet: error: two CPU threads"), captured.err
+
+
+def test_the_spread_classifies_as_the_run_is_told_and_refuses_bad_settings():
+    ens = TransportEnsemble.sample(MapParams(3.0, 0.1, 0.01), 16, "strip", seed=0)
+    assert (ens.threshold, ens.threshold_rule) == (None, "strict")
+    assert ens.classify_with(0.5) is ens and (ens.threshold, ens.threshold_rule) == (0.5, "strict")
+    assert ens.classify_with(threshold_rule="positive").threshold_rule == "positive"
+    with pytest.raises(ValueError, match="threshold_rule = 'loose' is not one of"):
+        ens.classify_with(threshold_rule="loose")
+    with pytest.raises(ValueError, match="threshold = -1"):
+        ens.classify_with(-1.0)

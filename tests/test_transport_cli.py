@@ -121,6 +121,6 @@ def test_mu_counts_the_chaotic_points_of_the_runs_threshold_rule(tmp_path):
     mu = {}
     for rule in ("strict", "positive"):
         ens = TransportEnsemble.sample(MapParams(3.0, 0.1, 0.01), 2000, "strip", 0)
-        ens.threshold_rule = rule
+        ens.classify_with(threshold_rule=rule)
         mu[rule] = ens.run(3000).diffusion().mu
     assert whole["mu"] == resumed["mu"] == mu["positive"] != mu["strict"]

@@ -152,9 +152,9 @@ def test_the_spread_of_a_transport_run_is_historys_variance(rule):
     """V(n) pooled from the groups equals History's var_dp_chaotic at the steps both record, with
     the chaotic points of the same threshold rule (rounding apart: two summation orders)."""
     p = MapParams(3.0, 0.1, 0.01)
-    history = History(rule=rule)
+    history = History(threshold_rule=rule)
     ens = TransportEnsemble.sample(p, 3000, "strip", seed=1)
-    ens.threshold_rule = rule
+    ens.classify_with(threshold_rule=rule)
     ens.run(3000, [history])
     steps, var = ens.spread()
     rows = dict(zip(history.rows["step"], history.rows["var_dp_chaotic"], strict=True))

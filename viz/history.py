@@ -1,6 +1,6 @@
 """``python -m viz history run.h5 -o history.png``: A_n and sigma_n of a run against n (log n axis).
 
-The history of an archive (``warpratchet run --out``, group ``/history``; issue 15): at log-spaced
+The history of an archive (``warpratchet run --out``, group ``/history``): at log-spaced
 steps, the mean A_n of Eq. (An) over the chaotic points with its standard error, and their mean
 finite-time Lyapunov exponent sigma_n. Marked: n/2 and n, between which the drift of the verdict
 is measured, the robust standard error at n, and the closed form of Eqs. (Aa)/(Ab) where the

@@ -169,7 +169,7 @@ def render(
         "since |K f(x)| < K/2). The assumption, stated: the excess displacement after T0 steps sums to less "
         "than that bound.",
         "",
-        "Convergence (issue 15). One number per run hides whether A_n has settled: near islands orbits stick "
+        "Convergence. One number per run hides whether A_n has settled: near islands orbits stick "
         "for heavy-tailed times. Every run records its history (`warpratchet.history`: A_n at log-spaced n, "
         "and the momentum gains of 4096 of its orbits over 64 equal time blocks). `robust se` is the "
         "standard "

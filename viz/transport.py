@@ -1,4 +1,4 @@
-"""``python -m viz transport``: return-time and flight distributions, and orbits on the torus (issue 16).
+"""``python -m viz transport``: return-time and flight distributions, and orbits on the torus.
 
 Two figures built on the public API:
 
@@ -72,8 +72,7 @@ def _fitted(ax, fit: dict, total: int, color: str) -> None:
     per unit length), on the same abscissae as the data."""
     if fit.get("reason") or fit.get("alpha") is None:
         return
-    from warpratchet.transport.fits import bin_masses
-    from warpratchet.transport.histograms import edges
+    from warpratchet.transport import bin_masses, edges
 
     alpha, first, last = fit["alpha"], fit["first_bin"], fit["last_bin"]
     masses = bin_masses(alpha, first, last)

@@ -17,6 +17,7 @@ from typing import Any
 from . import theory
 from .observables import Summary, UnreliableWarning, acceleration, chaotic_mask, lyapunov, summarize
 from .params import MapParams
+from .runloop import register_sink
 from .spec import RunSpec
 
 try:
@@ -25,7 +26,13 @@ except PackageNotFoundError:  # pragma: no cover - running from a source tree
     __version__ = "0+unknown"
 
 #: Public names imported on first use: name -> module.
-_LAZY = {"Ensemble": ".ensemble", "Observer": ".runloop", "History": ".history", "open_archive": ".archive"}
+_LAZY = {
+    "Ensemble": ".ensemble",
+    "Observer": ".runloop",
+    "History": ".history",
+    "open_archive": ".archive",
+    "StorageError": "._storage",
+}
 
 __all__ = [
     "MapParams",
@@ -41,8 +48,20 @@ __all__ = [
     "chaotic_mask",
     "summarize",
     "open_archive",
+    "StorageError",
     "__version__",
 ]
+
+
+def _archive_sink(ensemble: Any, path: Any, chunk_steps: int | None) -> Any:
+    """``Ensemble.run(archive=path)``'s sink: the archive sits above the run loop, which reaches it
+    only through this registration (:func:`warpratchet.runloop.register_sink`)."""
+    from .archive.attach import archive_sink
+
+    return archive_sink(ensemble, path, chunk_steps)
+
+
+register_sink("archive", _archive_sink)
 
 
 def __getattr__(name: str) -> Any:

@@ -35,6 +35,12 @@ from .ensemble import STATE_FIELDS
 __all__ = ["write_merged"]
 
 
+def shard_paths(workdir: str | os.PathLike, index: int) -> tuple[str, str]:
+    """``(archive, records folder)`` of shard ``index`` in ``workdir``."""
+    base = os.path.join(os.fspath(workdir), f"shard-{index:04d}")
+    return base + ".h5", base + ".records"
+
+
 def _virtual(
     group: h5py.Group, name: str, sources: list[tuple[str, str, int, int]], fill: float | int
 ) -> None:
@@ -59,8 +65,6 @@ def _current_slot(path: str) -> str:
 def write_merged(out: str | os.PathLike, merged: Any, workdir: str, bounds: list[tuple[int, int]]) -> None:
     """Write ``out`` (a new file) for ``merged`` (a :class:`~warpratchet.cluster.ShardedRun`) whose
     shards' archives are in ``workdir`` (module docstring)."""
-    from .cluster import shard_paths
-
     out = os.fspath(out)
     folder = os.path.dirname(os.path.abspath(out))
     archives = [shard_paths(workdir, k)[0] for k in range(len(bounds))]

@@ -91,7 +91,7 @@ def abandon_h5(f: h5py.File) -> None:
 
     After a failed write (a full disk), HDF5 keeps the unwritten metadata dirty and retries it
     when the file is closed, which fails again; at interpreter exit the library then closes
-    the file once more and crashes (exit 139, issue 13.3). Pointing HDF5's descriptor at a
+    the file once more and crashes (exit 139). Pointing HDF5's descriptor at a
     scratch file in memory first (``memfd``; ``/dev/null`` where there is none) lets the close
     succeed without touching the file: it keeps what the last successful flush wrote (for an
     SWMR writer, a consistent file still marked open, exactly what a killed writer leaves,
@@ -255,7 +255,7 @@ def open_h5(path: str | os.PathLike, *, locking: bool | None = None) -> h5py.Fil
     SWMR-read mode; any other normally, so that HDF5 compares its size with the superblock and
     a truncated file is an error at once. The superblock's mark decides, not a failed normal
     open: HDF5 checks a file's size *before* its mark, so a live file whose writer has just
-    allocated space it has not written yet gives a false "truncated file" (issue 13.4).
+    allocated space it has not written yet gives a false "truncated file".
 
     Locking. ``locking=None`` (the default) opens with HDF5's default file locking, like any
     ``h5py.File``; beside a handle this process already holds with other settings it takes

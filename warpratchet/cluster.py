@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from ._cluster_archive import shard_paths
 from .errors import ParameterError, ResourceError, check_count
 from .history import BLOCKS, History, block_steps, block_subsample, history_row, history_steps
 from .limits import format_bytes
@@ -215,12 +216,6 @@ def _sample_shard(spec: RunSpec, lo: int, hi: int, transport: bool):
     )  # fmt: skip
 
 
-def shard_paths(workdir: str | os.PathLike, index: int) -> tuple[str, str]:
-    """``(archive, records folder)`` of shard ``index`` in ``workdir``."""
-    base = os.path.join(os.fspath(workdir), f"shard-{index:04d}")
-    return base + ".h5", base + ".records"
-
-
 def run_shard(
     spec: RunSpec,
     lo: int,
@@ -365,7 +360,9 @@ class ShardedRun:
             "block_ftle": list(np.concatenate([r.block_ftle for r in self._records], axis=1)),
         }
         indices = block_subsample(self.points, self.seed)
-        return History.restore(rows, block_rows, indices, threshold=spec.threshold, rule=spec.threshold_rule)
+        return History.restore(
+            rows, block_rows, indices, threshold=spec.threshold, threshold_rule=spec.threshold_rule
+        )
 
     def summary(
         self,

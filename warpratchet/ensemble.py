@@ -26,12 +26,12 @@ import numpy as np
 import warp as wp
 
 from . import kernels
-from .errors import ParameterError, check_choice, check_count, check_optional, check_real
+from .errors import ParameterError, check_choice, check_count, check_optional, check_real, renamed_keyword
 from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from .limits import MAX_POINTS, MAX_STEP, check_kernel_range, check_memory, format_bytes
 from .observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, Summary, summarize
 from .params import MapParams
-from .runloop import Observer, archive_sink, check_observers, default_chunk_steps, default_threads, run_chunks
+from .runloop import Observer, check_observers, default_chunk_steps, default_threads, open_sink, run_chunks
 from .sampling import _BUILD_CHUNK, grid_nodes, sample_grid, sample_strip, sample_torus, sampled_chunks
 from .spec import MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS
 from .state import STATE_FIELDS, check_initial, check_state, initial_state
@@ -143,7 +143,7 @@ class Ensemble:
             for name in STATE_FIELDS
         }
         self.points = points
-        self._summaries: dict[tuple, Summary] = {}  # (step, threshold, rule): summary at this step
+        self._summaries: dict[tuple, Summary] = {}  # (step, threshold, threshold_rule): summary at this step
 
     @classmethod
     def bytes_per_point(cls) -> int:
@@ -337,7 +337,7 @@ class Ensemble:
         observers = check_observers(observers)
         sink = None
         if archive is not None:
-            sink = archive_sink(self, archive, chunk_steps)
+            sink = open_sink("archive", self, archive, chunk_steps)
             if sink.history is not None:
                 observers.append(sink.history)  # its rows end chunks at their steps
             observers.append(sink)
@@ -368,12 +368,15 @@ class Ensemble:
         A plain ensemble never has it (:class:`~warpratchet.transport.TransportEnsemble` does)."""
         return None
 
-    def summary(self, threshold: float | None = None, rule: str = "strict", *, warn: bool = True) -> Summary:
+    @renamed_keyword("rule", "threshold_rule")
+    def summary(
+        self, threshold: float | None = None, threshold_rule: str = "strict", *, warn: bool = True
+    ) -> Summary:
         """:func:`~warpratchet.observables.summarize` of the current state: A, FTLE, chaotic fraction.
 
-        ``threshold`` (or, when it is None, ``rule``) as ``summarize`` takes them. Computed once per
+        ``threshold`` (or, when it is None, ``threshold_rule``) as ``summarize`` takes them. Computed once per
         step and threshold: the history's row, the archive's series row and the run's report at
-        the same step share it (bitwise the same Summary; a summary of 10^6 points is ~50 ms).
+        the same step share it (bitwise the same Summary).
 
         Warns with :class:`~warpratchet.observables.UnreliableWarning` when the run is too short,
         or has too few chaotic points, to estimate A (``Summary.reliable`` is False; ``reason``
@@ -382,11 +385,11 @@ class Ensemble:
         if self.undefined is not None:
             raise ValueError(f"this ensemble has no summary: {self.undefined}")
         threshold = check_optional(check_real, "threshold", threshold, 0.0)
-        key = (self.step, threshold, rule if threshold is None else None)
+        key = (self.step, threshold, threshold_rule if threshold is None else None)
         result = self._summaries.get(key)
         if result is None:
             ftle = self.known_ftle(self.step)
-            result = summarize(self.views(), self.step, threshold, rule, ftle)
+            result = summarize(self.views(), self.step, threshold, threshold_rule, ftle)
             self._summaries[key] = result
         if warn:
             result.warn()

@@ -19,10 +19,13 @@ Pure: no Warp, no I/O.
 
 from __future__ import annotations
 
+import functools
 import math
 import numbers
 import operator
-from collections.abc import Iterable
+import warnings
+from collections.abc import Callable, Iterable
+from typing import Any
 
 __all__ = [
     "WarpratchetError",
@@ -35,6 +38,7 @@ __all__ = [
     "check_real",
     "check_choice",
     "check_optional",
+    "renamed_keyword",
 ]
 
 
@@ -137,3 +141,27 @@ def check_choice(name: str, value: object, choices: Iterable[str]) -> str:
 def check_optional(check, name: str, value: object, *args, **kwargs):
     """``None`` if ``value`` is ``None``, else ``check(name, value, *args, **kwargs)``."""
     return None if value is None else check(name, value, *args, **kwargs)
+
+
+def renamed_keyword(old: str, new: str) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Decorator: the keyword ``old`` still works for ``new``, with a :class:`DeprecationWarning`.
+
+    One name per concept: a keyword renamed to the name the rest of the API uses keeps its old
+    spelling for callers that have it, and says which to use instead.
+    """
+
+    def decorate(func: Callable[..., Any]) -> Callable[..., Any]:
+        @functools.wraps(func)
+        def wrapper(*args: Any, **kwargs: Any) -> Any:
+            if old in kwargs:
+                if new in kwargs:
+                    raise TypeError(f"{func.__qualname__}() got both {old}= and {new}=; give {new}= only")
+                warnings.warn(
+                    f"{func.__qualname__}({old}=...) is spelled {new}=...", DeprecationWarning, stacklevel=2
+                )
+                kwargs[new] = kwargs.pop(old)
+            return func(*args, **kwargs)
+
+        return wrapper
+
+    return decorate

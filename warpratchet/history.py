@@ -1,4 +1,4 @@
-"""The history of a run: ensemble summaries at log-spaced global steps, and block gains (issue 15).
+"""The history of a run: ensemble summaries at log-spaced global steps, and block gains.
 
 One number per run hides convergence: near islands orbits stick for heavy-tailed times, and
 ``A_n`` of Eq. (An) can still drift when the run ends. A :class:`History` observer records two
@@ -47,13 +47,14 @@ n = 120000 cost ~1-2% of the run, and the ~28 rows of a 3000-step run of 10^6 po
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
 from .ensemble import STATE_FIELDS
-from .errors import check_choice, check_count, check_optional, check_real
+from .errors import check_choice, check_count, check_optional, check_real, renamed_keyword
 from .observables import SUMMARY_CHUNK, THRESHOLD_RULES, Summary, chaotic_mask, lyapunov, momentum_gain
 from .runloop import Observer
 from .sampling import salted_subsample
@@ -89,7 +90,7 @@ HISTORY_FIELDS = (
 INT_FIELDS = ("step", "chaotic_points")
 #: Per-block records: the step, and ``(M,)`` arrays of the subsample's gain and FTLE.
 BLOCK_FIELDS = ("block_step", "block_gain", "block_ftle")
-#: Rows per decade of n (the issue asks for at least 8).
+#: Rows per decade of n (at least 8, enough to see a drift between decades).
 PER_DECADE = 8
 #: Equal time blocks of the robust standard error (:func:`warpratchet.convergence.robust_stderr`).
 BLOCKS = 64
@@ -198,8 +199,8 @@ class History(Observer):
     Parameters
     ----------
     threshold : float, optional
-        Chaos threshold on the FTLE (default: the step-dependent rule ``rule``).
-    rule : str
+        Chaos threshold on the FTLE (default: the step-dependent rule ``threshold_rule``).
+    threshold_rule : str
         Threshold rule when ``threshold`` is None: ``"strict"`` (default) or ``"positive"``.
     per_decade : int, optional
         Rows per decade of n (default :data:`PER_DECADE`).
@@ -226,16 +227,17 @@ class History(Observer):
     archive sink may call it to make sure the row of the step it writes exists.
     """
 
+    @renamed_keyword("rule", "threshold_rule")
     def __init__(
         self,
         threshold: float | None = None,
-        rule: str = "strict",
+        threshold_rule: str = "strict",
         per_decade: int = PER_DECADE,
         blocks: int = BLOCKS,
         block_points: int = BLOCK_POINTS,
     ) -> None:
         self.threshold = check_optional(check_real, "threshold", threshold, low=0.0)
-        self.rule = check_choice("threshold_rule", rule, tuple(THRESHOLD_RULES))
+        self.threshold_rule = check_choice("threshold_rule", threshold_rule, tuple(THRESHOLD_RULES))
         self.per_decade = check_count("per_decade", per_decade, 1, 1000)
         self.blocks = check_count("blocks", blocks, 8, 1 << 16)
         self.block_points = check_count("block_points", block_points, 2)
@@ -274,11 +276,17 @@ class History(Observer):
             raise ValueError("history rows (or block rows) of unequal length")
         return obj
 
+    @property
+    def rule(self) -> str:
+        """Former spelling of :attr:`threshold_rule`, with a :class:`DeprecationWarning`."""
+        warnings.warn("History.rule is spelled History.threshold_rule", DeprecationWarning, stacklevel=2)
+        return self.threshold_rule
+
     def settings(self) -> dict[str, Any]:
         """The constructor's keywords of this history (what :meth:`restore` needs besides the records)."""
         return {
             "threshold": self.threshold,
-            "rule": self.rule,
+            "threshold_rule": self.threshold_rule,
             "per_decade": self.per_decade,
             "blocks": self.blocks,
             "block_points": self.block_points,
@@ -328,7 +336,7 @@ class History(Observer):
         if row_due:
             self._pending = [n for n in self._pending if n > step]
             # the ensemble's summary at this step: computed once for every sink that needs it
-            row = history_row(views, ensemble.summary(self.threshold, self.rule, warn=False))
+            row = history_row(views, ensemble.summary(self.threshold, self.threshold_rule, warn=False))
             for name in HISTORY_FIELDS:
                 self.rows[name].append(row[name])
         if block_due:
@@ -365,7 +373,7 @@ class History(Observer):
             )
         cumulative = np.array([self.block_rows["block_gain"][where[s]] for s in wanted])
         ftle = self.block_rows["block_ftle"][where[n]]
-        chaotic = chaotic_mask(ftle, n, self.threshold, self.rule)
+        chaotic = chaotic_mask(ftle, n, self.threshold, self.threshold_rule)
         gains = np.diff(np.vstack([np.zeros(cumulative.shape[1]), cumulative]), axis=0)
         return gains[:, chaotic], ""
 

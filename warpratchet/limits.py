@@ -1,6 +1,6 @@
 """What the code and the machine can carry: count ceilings, the kernels' range of the map, memory.
 
-Every limit is checked once, before any work (issue 13, items 1 and 5), with one line naming the
+Every limit is checked once, before any work, with one line naming the
 value and what would be needed:
 
 * **Counts** the code can carry: :data:`MAX_POINTS` (the kernels index points with 32-bit ints),

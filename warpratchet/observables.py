@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import NonFiniteStateError, check_count, check_optional, check_real
+from .errors import NonFiniteStateError, check_count, check_optional, check_real, renamed_keyword
 
 __all__ = [
     "momentum_gain",
@@ -95,7 +95,8 @@ def rule_formula(rule: str) -> str:
     return "(1 + ln n)/n" if factor == 1.0 else f"{factor:g} (1 + ln n)/n"
 
 
-def lyapunov_threshold(step: int, rule: str = "strict") -> float:
+@renamed_keyword("rule", "threshold_rule")
+def lyapunov_threshold(step: int, threshold_rule: str = "strict") -> float:
     """Chaos threshold on the FTLE after ``step`` iterations by a named rule: ``factor (1 + ln n)/n``.
 
     Why ``(1 + ln n)/n``. A regular orbit has a tangent that grows at most linearly,
@@ -120,9 +121,10 @@ def lyapunov_threshold(step: int, rule: str = "strict") -> float:
     if step <= 0:
         raise ValueError(f"step = {step!r}: the threshold needs at least one iteration")
     try:
-        factor = THRESHOLD_RULES[rule]
+        factor = THRESHOLD_RULES[threshold_rule]
     except (KeyError, TypeError):
-        raise ValueError(f"threshold_rule = {rule!r} is not one of {', '.join(THRESHOLD_RULES)}") from None
+        choices = ", ".join(THRESHOLD_RULES)
+        raise ValueError(f"threshold_rule = {threshold_rule!r} is not one of {choices}") from None
     return factor * (1.0 + math.log(step)) / step
 
 
@@ -134,12 +136,13 @@ def default_lyapunov_threshold(step: int) -> float:
     return lyapunov_threshold(step, "strict")
 
 
+@renamed_keyword("rule", "threshold_rule")
 def chaotic_mask(
-    ftle: np.ndarray, step: int, threshold: float | None = None, rule: str = "strict"
+    ftle: np.ndarray, step: int, threshold: float | None = None, threshold_rule: str = "strict"
 ) -> np.ndarray:
-    """Boolean mask of chaotic points: ``ftle > threshold`` (default: the rule's threshold)."""
+    """Boolean mask of chaotic points: ``ftle > threshold`` (default: ``threshold_rule``'s threshold)."""
     if threshold is None:
-        threshold = lyapunov_threshold(step, rule)
+        threshold = lyapunov_threshold(step, threshold_rule)
     return ftle > threshold
 
 
@@ -269,17 +272,18 @@ def _per_point(
         return lyapunov(part, step) if ftle is None else ftle[lo:hi], acceleration(part, step)
 
 
+@renamed_keyword("rule", "threshold_rule")
 def summarize(
     state: dict[str, np.ndarray],
     step: int,
     threshold: float | None = None,
-    rule: str = "strict",
+    threshold_rule: str = "strict",
     ftle: np.ndarray | None = None,
 ) -> Summary:
     """Mean ``A_n`` over chaotic points with its standard error, FTLE statistics, chaotic fraction.
 
     Chaotic: FTLE above ``threshold``, or, when it is None, above :func:`lyapunov_threshold` of
-    ``rule`` (``"strict"``: ``10 (1 + ln n)/n``; ``"positive"``: ``(1 + ln n)/n``).
+    ``threshold_rule`` (``"strict"``: ``10 (1 + ln n)/n``; ``"positive"``: ``(1 + ln n)/n``).
 
     The standard error is ``std / sqrt(N_chaotic)``: points are independent samples of the
     initial distribution, so it is the honest sampling error of the ensemble mean. Quantities
@@ -317,7 +321,7 @@ def summarize(
     step = check_count("step", step, 1)
     threshold = check_optional(check_real, "threshold", threshold, 0.0)
     if threshold is None:
-        threshold = lyapunov_threshold(step, rule)
+        threshold = lyapunov_threshold(step, threshold_rule)
     n = len(state["log_stretch"])
     if ftle is not None and np.shape(ftle) != (n,):
         raise ValueError(f"ftle has shape {np.shape(ftle)}, expected ({n},)")

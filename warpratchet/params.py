@@ -20,7 +20,7 @@ import numpy as np
 from .errors import ParameterError, check_real
 from .force import Force, paper_coefficients
 
-# check_real is re-exported: it was params.check_real before errors.py held the one validator set.
+# check_real is re-exported for callers that import it from here (its home is errors.py).
 __all__ = ["MapParams", "check_real", "map_text"]
 
 

@@ -5,7 +5,7 @@ stop only *between* chunks. Three guarantees follow from that:
 
 * **Consistent on Ctrl-C.** A Warp launch cannot be cancelled, and a chunk runs as several
   launches (one per CPU thread): stopping halfway would leave some points a chunk ahead of the
-  step counter (issue 14: ``ens.step`` 0, the arrays at step 20000, every later ``A_n`` divided
+  step counter (``ens.step`` 0, the arrays at step 20000, every later ``A_n`` divided
   by the wrong ``n``). So while the loop runs, SIGINT is *deferred*: the handler notes it, the
   chunk in flight and the observers' ``after_chunk`` finish, every observer's ``end`` runs, and
   then the original handler is called (Python's raises :class:`KeyboardInterrupt`). The
@@ -33,7 +33,7 @@ import os
 import signal
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -44,7 +44,8 @@ __all__ = [
     "check_observers",
     "deferred_interrupts",
     "run_chunks",
-    "archive_sink",
+    "register_sink",
+    "open_sink",
     "default_threads",
     "default_chunk_steps",
 ]
@@ -59,19 +60,11 @@ def default_threads() -> int:
 
 
 def default_chunk_steps(points: int) -> int:
-    """Steps per chunk: about 2.5e8 point-steps (~0.2-0.4 s here), between 16 and 10^5 steps.
+    """Steps per chunk: about 2.5e8 point-steps, between 16 and 10^5 steps.
 
-    Long enough that per-chunk Python work (observers, progress) is noise, short enough that
-    progress bars move and a checkpoint is never far behind.
-
-    What a chunk end costs the kernels (measured for issue 16, 10^6 points, one thread, CPU time
-    of launches of 0 steps): a launch loads and stores the state, ~10 ms for ``advance_map``
-    (~5% of a 250-step chunk at ~1.2e9 point-steps/s), ~2 ms more for ``advance_map_transport``
-    (its carry). Kept at 2.5e8: a transport run of 12 000 steps ends 123 chunks, of which only 30
-    are regular chunk ends (the rest are History rows and block ends), so longer chunks would not
-    move ``--transport``'s ratio; by that launch cost, a plain run of 10^6 points x 120 000 steps
-    would save ~3% with 4x longer chunks (an estimate, not measured), at the price of 4x slower
-    progress, Ctrl-C and default checkpoints.
+    Long enough that per-chunk Python work (observers, progress) and the launch's load and store
+    of the state are small beside the kernel, short enough that progress bars move, Ctrl-C answers
+    soon and a checkpoint is never far behind (the cost of a chunk end: benchmarks/README.md).
     """
     return int(min(100_000, max(16, 250_000_000 // max(points, 1))))
 
@@ -234,45 +227,20 @@ def run_chunks(
             _end_all(ensemble, began)
 
 
-def archive_sink(ensemble: Any, path: str | os.PathLike, chunk_steps: int | None) -> Any:
-    """The ArchiveSink of ``Ensemble.run(archive=path)``: a new archive, or this run's to append to.
+#: Sinks that :meth:`Ensemble.run <warpratchet.ensemble.Ensemble.run>` opens by keyword
+#: (``archive=path``): keyword -> ``factory(ensemble, target, chunk_steps)``. The packages that
+#: provide them sit above the run loop, so they register here and the loop never imports them.
+_SINKS: dict[str, Callable[[Any, Any, int | None], Any]] = {}
 
-    A new archive keeps the run's :class:`~warpratchet.history.History` (``sink.history``, an
-    observer of the run too).
 
-    An existing file is appended to only if it is an archive whose checkpoint holds exactly this
-    ensemble (same step, every state array equal bit for bit): what a previous ``run(...,
-    archive=path)`` of this ensemble leaves when it completes. Anything else is refused, so an
-    archive never mixes two runs.
-    """
-    # Imported here: archives sit above the run loop (they observe runs), and only this
-    # convenience of Ensemble.run reaches up to them.
-    import numpy as np
+def register_sink(keyword: str, factory: Callable[[Any, Any, int | None], Any]) -> None:
+    """Let ``Ensemble.run(keyword=target)`` open its sink with ``factory(ensemble, target, chunk_steps)``."""
+    _SINKS[keyword] = factory
 
-    from .archive import ArchiveSink, open_archive
-    from .history import History
 
-    if not os.path.lexists(path):
-        return ArchiveSink(path, ensemble, chunk_steps=chunk_steps, threshold=None, history=History())
-    with open_archive(path) as arc:
-        state, step = arc.checkpoint()
-        params = arc.params
-    same = (
-        params == ensemble.params
-        and step == ensemble.step
-        and all(np.array_equal(state[name], ensemble.array(name)) for name in state)
-    )
-    if not same:
-        raise ValueError(
-            f"{os.fspath(path)} exists and does not hold this ensemble at step {ensemble.step} "
-            f"(its checkpoint is at step {step}); choose a new path, or continue that run from "
-            "open_archive(path).ensemble()"
-        )
-    sink, _ = ArchiveSink.resume(path, threads=ensemble.threads, device=ensemble.device)
-    if chunk_steps is not None and chunk_steps != sink.chunk_steps:
-        sink.close()
-        raise ValueError(
-            f"chunk_steps = {chunk_steps} differs from the archive's chunk_steps = {sink.chunk_steps}"
-        )
-    sink.ensemble = ensemble  # the restored twin equals this ensemble bit for bit (checked above)
-    return sink
+def open_sink(keyword: str, ensemble: Any, target: Any, chunk_steps: int | None) -> Any:
+    """The sink that ``Ensemble.run(keyword=target)`` asks for, from its registered factory."""
+    factory = _SINKS.get(keyword)
+    if factory is None:
+        raise ValueError(f"{keyword}= has no sink registered; import warpratchet first")
+    return factory(ensemble, target, chunk_steps)

@@ -58,11 +58,10 @@ CLASSIFIERS = ("ftle", "megno", "fli")
 #: The factors are :data:`warpratchet.observables.THRESHOLD_RULES`.
 THRESHOLD_RULES = ("strict", "positive")
 #: Upper bound of ``threads``. Each thread is a Python thread with its own shard and stack; more
-#: threads than cores buy nothing, and no single machine today has 4096 hardware threads. Without
-#: a bound, ``threads = 10**9`` ran for 75 s and took 15.8 GB before failing (issue 13).
+#: threads than cores buy nothing, and an unbounded count exhausts memory before it fails.
 MAX_THREADS = 4096
 #: Upper bound of ``chunk_steps``. Launches split longer chunks (a launch counts its steps in a
-#: 32-bit int; issue 13, item 1), but a chunk is also the unit of progress, checkpoints and
+#: 32-bit int), but a chunk is also the unit of progress, checkpoints and
 #: Ctrl-C, and one of more than 2^31 steps is never what a user meant.
 MAX_CHUNK_STEPS = 2**31 - 1
 #: Counts are stored as int64 (HDF5 attributes, sweep columns).

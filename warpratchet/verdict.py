@@ -1,4 +1,4 @@
-"""The verdict of a run: has its ``A`` converged? (issue 15; what ``run`` prints and sweep rows keep).
+"""The verdict of a run: has its ``A`` converged? (what ``run`` prints and sweep rows keep).
 
 Pure NumPy, no Warp, no I/O. :func:`assess` combines the two diagnostics of
 :mod:`warpratchet.convergence` on what a :class:`~warpratchet.history.History` records: the drift

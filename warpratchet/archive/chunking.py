@@ -28,15 +28,15 @@ __all__ = [
 
 #: Checkpoint every this many chunks by default: a checkpoint writes 56 bytes per point (the cost
 #: of ~50 point-steps of the kernel) plus two fsyncs, so 8 chunks keep it well under 1% of the
-#: kernel time while never losing more than ~8 chunks (a few seconds at the default chunk).
+#: kernel time while never losing more than ~8 chunks.
 CHECKPOINT_CHUNKS = 8
-#: Smallest default chunk while archiving when nothing is measured: one series row costs ~25
-#: point-steps per point (the summary of Eq. An and the FTLE) with the kernel of release 0.1,
-#: so chunks of >= 1024 steps keep it below ~3%. :func:`sink_min_chunk_steps` measures instead.
+#: Smallest default chunk while archiving when nothing is measured: one series row costs some
+#: tens of point-steps per point (the summary of Eq. An and the FTLE), so chunks of >= 1024 steps
+#: keep it to a few percent. :func:`sink_min_chunk_steps` measures instead.
 MIN_ARCHIVE_CHUNK_STEPS = 1024
 #: Largest share of the kernel time a series row may cost at the default chunk length: 0.5%,
-#: so that the kernel may get several times faster before the archive costs more than the 5%
-#: of issue 3's budget.
+#: so that the kernel may get several times faster before the archive costs more than a 5%
+#: budget (benchmarks/archive_overhead.py).
 ROW_SHARE = 0.005
 #: Seconds of HDF5 work per series row besides the summary (eleven row writes, two flushes).
 ROW_IO_SECONDS = 1e-3
@@ -68,7 +68,7 @@ def sink_min_chunk_steps(ensemble: Ensemble) -> int:
     A row costs a summary of every point (Eqs. An and the FTLE, NumPy on one core) plus
     :data:`ROW_IO_SECONDS` of HDF5 work; a chunk costs ``points * chunk_steps`` kernel
     point-steps on ``ensemble.threads`` threads. Both speeds are measured on one thread, once per
-    process, kind of ensemble, device and map (:func:`_seconds_per_point`, ~5 ms on a copy of up
+    process, kind of ensemble, device and map (:func:`_seconds_per_point`, on a copy of up
     to 4096 of the ensemble's points; the kernel's time is then shared by the threads), so the
     chunk follows the kernel: a 3x faster kernel gets 3x longer default chunks instead of a 3x
     larger archive overhead. Rounded up to 1, 2 or 5 times a power of ten. The ensemble is not

@@ -36,10 +36,11 @@ def check_history(history: History, threshold: float | None, rule: str) -> None:
     """ValueError unless ``history`` can be kept by a new archive classifying with ``threshold``, ``rule``."""
     if not isinstance(history, History):
         raise ValueError(f"history = {history!r} is not a History")
-    if (history.threshold, history.rule) != (threshold, rule):
+    if (history.threshold, history.threshold_rule) != (threshold, rule):
         raise ValueError(
-            f"the history classifies with threshold = {history.threshold!r}, rule = {history.rule!r}; "
-            f"the archive with threshold = {threshold!r}, rule = {rule!r}"
+            f"the history classifies with threshold = {history.threshold!r}, "
+            f"threshold_rule = {history.threshold_rule!r}; "
+            f"the archive with threshold = {threshold!r}, threshold_rule = {rule!r}"
         )
     if history.rows["step"] or history.block_rows["block_step"]:
         raise ValueError(
@@ -111,7 +112,7 @@ def history_settings(path: str, f: h5py.File, settings: dict[str, Any]) -> dict[
         attrs = {k: attr_value(v) for k, v in f["history"].attrs.items()}
     return {
         "threshold": settings.get("threshold"),
-        "rule": settings.get("threshold_rule") or "strict",
+        "threshold_rule": settings.get("threshold_rule") or "strict",
         "per_decade": int(attrs["per_decade"]),
         "blocks": int(attrs["blocks"]),
         "block_points": max(2, int(attrs["block_points"])),

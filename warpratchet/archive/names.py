@@ -96,8 +96,8 @@ HISTORY_COUNTERS = {"rows": "progress/history_rows", "blocks": "progress/block_r
 #: misread (a renamed or reinterpreted dataset) bumps ``format_version`` instead.
 KNOWN_FEATURES = {
     "history": "/history: log-spaced rows of A_n, its standard error, sigma, the chaotic fraction "
-    "and variances, and block gains of a subsample (issue 15)",
-    "transport": "/transport: momentum histograms (issue 16)",
+    "and variances, and block gains of a subsample",
+    "transport": "/transport: momentum histograms",
 }
 
 

@@ -7,22 +7,22 @@ under a temporary name and put in place of the old file atomically, under an exc
 from __future__ import annotations
 
 import os
-from typing import TYPE_CHECKING
+from typing import TypeVar
 
 from .._files import claim
 from ..ensemble import Ensemble
 from .names import ArchiveError
 from .resume import salvage
 
-if TYPE_CHECKING:
-    from .writer import ArchiveSink
+#: The sink class (``ArchiveSink``), passed in by the classmethod ``ArchiveSink.resume``.
+Sink = TypeVar("Sink")
 
 __all__ = ["reopen"]
 
 
 def reopen(
-    cls: type[ArchiveSink], path: str | os.PathLike, *, threads: int | None = None, device: str | None = None
-) -> tuple[ArchiveSink, Ensemble]:
+    cls: type[Sink], path: str | os.PathLike, *, threads: int | None = None, device: str | None = None
+) -> tuple[Sink, Ensemble]:
     """Reopen an archive for appending, from its newest good checkpoint.
 
     The archive is rebuilt under a temporary name from what is valid (metadata, initial

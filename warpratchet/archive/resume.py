@@ -7,7 +7,7 @@ kernel that would not continue the run bit for bit); :meth:`Salvage.write` puts 
 file, whose layout :func:`~warpratchet.archive.layout.create` has made. Rows past the checkpoint
 are dropped: the resumed run writes them again, identically (only their clocks differ).
 
-Damage costs only what it hit (issue 13.2): a series row or snapshot whose checksum fails is
+Damage costs only what it hit: a series row or snapshot whose checksum fails is
 left out, a damaged initial state of a sampled ensemble is sampled again (the samplers are
 deterministic), otherwise the checkpoint becomes the archive's initial state; each is named in
 one :class:`~warpratchet.archive.names.ArchiveWarning`.

@@ -4,8 +4,8 @@
 time), :meth:`Rows.commit` makes the rows put since the last commit valid by raising the
 counter, :meth:`Rows.trim` cuts the datasets to the valid rows when the archive is closed (so a
 closed archive holds exactly its rows); :func:`fill_rows` puts a rebuilt archive's kept rows
-in at once. Rows are written with low-level HDF5 calls: h5py's
-indexing costs ~0.2 ms per call, which at small chunks would dominate the kernel time.
+in at once. Rows are written with low-level HDF5 calls: h5py's indexing costs more per call
+than a short chunk's kernel time (benchmarks/README.md, archive_overhead.py).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The optional ``/transport`` group of an archive (feature ``"transport"``, issue 16).
+"""The optional ``/transport`` group of an archive (feature ``"transport"``).
 
 An archive of a :class:`~warpratchet.transport.TransportEnsemble` run holds, besides the usual
 layout:
@@ -27,6 +27,7 @@ from ..glossary import describe
 from ..spec import attr_value
 from ..transport.fits import GROUPS
 from ..transport.histograms import BINS, CARRY_FIELDS, HISTOGRAMS
+from ..transport.report import counts_transport
 from .checks import read_counter, reading, valid_rows
 from .checks import refresh as _refresh
 from .layout import ROW_CHUNK, STATE_CHUNK, _dimension, _group, _set_attrs, seal
@@ -117,11 +118,6 @@ class TransportRows(Rows):
         super().__init__(f["transport"], ("step", "counts"), f["transport"]["rows"], count)
 
 
-def counts_transport(ensemble: Any) -> bool:
-    """Whether ``ensemble`` counts return times and flights (a ``TransportEnsemble``)."""
-    return callable(getattr(ensemble, "transport_state", None))
-
-
 class TransportWriter:
     """The ``/transport`` group of a running archive: a row with the series row of each chunk,
     the transport state beside each checkpoint (the interface of ``HistoryWriter``)."""
@@ -210,6 +206,4 @@ def restore(
     from ..transport import TransportEnsemble
 
     ensemble = TransportEnsemble.from_state(params, state, step, transport=transport, **kwargs)
-    ensemble.threshold = threshold
-    ensemble.threshold_rule = threshold_rule
-    return ensemble
+    return ensemble.classify_with(threshold, threshold_rule)

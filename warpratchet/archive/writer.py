@@ -91,8 +91,9 @@ class ArchiveSink(Observer):
         Points ``M`` in the snapshot subsample (at most the ensemble size).
     checkpoint_every, chunk_steps : int, optional
         See :func:`~warpratchet.archive.chunking.schedule`; the default chunk is long enough
-        that a series row costs at most ~1% of the kernel time at this machine's measured
-        speed (:func:`~warpratchet.archive.chunking.sink_min_chunk_steps`).
+        that a series row costs at most :data:`~warpratchet.archive.chunking.ROW_SHARE` of the
+        kernel time at this machine's measured speed
+        (:func:`~warpratchet.archive.chunking.sink_min_chunk_steps`).
     threshold : float, optional
         FTLE threshold for the chaotic points of the series (default: per step, the rule
         ``threshold_rule``, :func:`~warpratchet.observables.lyapunov_threshold`).

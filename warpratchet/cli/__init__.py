@@ -8,7 +8,7 @@ they share (the one-line error, JSON output, flags built from :class:`~warpratch
 and its range and exits with status 2, never a traceback (a flag refused while parsing: a short
 usage line first, then ``warpratchet run: error: ...``; a ``ValueError`` from the API or an
 unreadable file while a command runs: ``warpratchet: error: ...`` alone); a write the system refuses
-(disk full, read-only, permissions: :class:`warpratchet._files.StorageError`) one line and status 1,
+(disk full, read-only, permissions: :class:`warpratchet.StorageError`) one line and status 1,
 as does a launch the code refuses to vouch for (:class:`warpratchet.errors.KernelError`);
 Ctrl-C prints one line (where it stopped, what was kept: :class:`.common.Interrupted`) and exits
 with 130 (128 + SIGINT).
@@ -148,7 +148,7 @@ def _joined_lists(argv: list[str]) -> list[str]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status (2 for bad input, 130 on Ctrl-C)."""
-    from .._files import StorageError
+    from .. import StorageError
     from ..errors import KernelError
 
     argv = list(sys.argv[1:] if argv is None else argv)

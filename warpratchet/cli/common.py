@@ -46,8 +46,8 @@ class UsageError(Exception):
 
     ``prog`` is the command that refused it (``warpratchet`` or, for argparse's errors, the
     subcommand, as argparse names it); ``hint`` follows the message. ``usage``, if given, is
-    printed on the line before: a parse error shows a short usage line (argparse's convention,
-    issue 14.7), an error found while a command runs is the error line alone.
+    printed on the line before: a parse error shows a short usage line (argparse's
+    convention), an error found while a command runs is the error line alone.
     """
 
     def __init__(self, message: str, prog: str = "warpratchet", hint: str = "", usage: str = "") -> None:

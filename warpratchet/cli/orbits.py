@@ -3,7 +3,7 @@
 For the torus map at ``(K, b1, b2)`` (:mod:`warpratchet.orbits`, docs/orbits.md): each cycle once,
 with its points, winding ``w``, ``nu = w/m`` (Eq. AIn), Greene's residue ``R = (2 - tr DM^m)/4``
 and kind; where ``det(DM^m - I) = 0``, the families (polygons or segments of periodic points).
-The exact enumeration grows about 3.3x per period (period 9 takes ~40 s here): a period whose
+The exact enumeration grows about 3.3x per period: a period whose
 enumeration is estimated to take more than a minute is refused with the estimate unless
 ``--long`` is given.
 """
@@ -15,9 +15,9 @@ from collections.abc import Sequence
 
 from .common import UsageError, count_type, emit_json, spec_flags
 
-#: Periods up to this one always run (measured: under 15 s on the shared 2-core machine).
+#: Periods up to this one always run (their cost: benchmarks/README.md, orbits.py).
 ALWAYS = 8
-#: Periods probed to extrapolate the cost of a longer one (~2.5 s on the shared 2-core machine).
+#: Periods probed to extrapolate the cost of a longer one.
 PROBES = (5, 6, 7)
 #: Estimated seconds above which ``--long`` is required.
 LONG_SECONDS = 60.0
@@ -44,7 +44,7 @@ def extrapolate_nodes(nodes: Sequence[int], period: int) -> tuple[float, float]:
     The growth per period itself rises with m (3.01, 3.14, 3.25, 3.35 from m = 5 to 9 at K = 3,
     b1 = 0.1, b2 = 0.01), so it is extrapolated linearly from the probes' last two ratios (never
     below 1). From periods 5-7 this gives the exact counts of periods 8 and 9 at both points of
-    docs/orbits.md within 2%, where a constant growth was ~10% low by period 9.
+    docs/orbits.md within 2%, where a constant growth is ~10% low by period 9.
     """
     ratios = [b / max(a, 1) for a, b in zip(nodes, nodes[1:], strict=False)]
     step = ratios[-1] - ratios[-2]
@@ -59,10 +59,8 @@ def estimate_seconds(params, period: int) -> tuple[float, float]:
     """``(seconds, growth per period)``: the cost of ``period`` extrapolated from :data:`PROBES`.
 
     Nodes by :func:`extrapolate_nodes`; a node costs more the longer the period, about in
-    proportion to m (its exact integers grow with the steps; measured 66, 77, 94 us at m = 6, 7,
-    8 at K = 3), so the last probe's seconds per node are scaled by ``period / PROBES[-1]``. With
-    the node count at the last probe's growth and its cost per node, period 10 was estimated at
-    34-48 s and ran for 77-138 s without ``--long``.
+    proportion to m (its exact integers grow with the steps), so the last probe's seconds per node
+    are scaled by ``period / PROBES[-1]`` (why both corrections: benchmarks/README.md, orbits.py).
     """
     from ..orbits import enumerate_orbits
 

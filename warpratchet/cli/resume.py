@@ -12,7 +12,7 @@ import warnings
 
 from ..spec import LEGACY_NAMES
 from .common import ProgressBar, UsageError, print_warnings, spec_flag, spec_flags
-from .run import history_report, print_report, run_report
+from .report import history_report, print_report, run_report
 
 #: Settings that may be given to check them against the archive.
 CHECKED = ("K", "b1", "b2", "knots", "values", "points", "seed", "init")

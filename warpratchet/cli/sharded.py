@@ -82,7 +82,7 @@ def _same_run(out: str, spec: RunSpec) -> None:
 def command(args: argparse.Namespace, spec: RunSpec) -> int:
     """Run ``spec`` on the cluster at ``args.scheduler`` and print ``run``'s report."""
     from ..cluster import run_sharded
-    from .run import history_report, print_report, run_report
+    from .report import history_report, print_report, run_report
 
     try:
         import distributed

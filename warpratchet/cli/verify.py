@@ -34,10 +34,9 @@ def _kind(path: str) -> str | None:
 
 
 def command(args: argparse.Namespace) -> int:
-    from ..archive import ArchiveError
-    from ..archive.verify import verify_archive
+    from ..archive import ArchiveError, verify_archive
     from ..errors import FileFormatError
-    from ..sweep.verify import verify_sweep
+    from ..sweep import verify_sweep
 
     path = args.file
     if not os.path.isfile(path):

@@ -1,4 +1,4 @@
-"""Every periodic orbit of the torus map with its residue, and the families of them (issue 16).
+"""Every periodic orbit of the torus map with its residue, and the families of them.
 
 The torus map (Eq. cpem mod 1, in the kernels' variables ``x, q = p mod 1``) is affine on each
 cell of a symbol ``(piece of Eq. fx, k = floor(q + K f), j)``; an itinerary of ``m`` symbols

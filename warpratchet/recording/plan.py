@@ -5,7 +5,7 @@ steps, and then the slow settling of ``A_n`` (Eq. An) onto the theory. So by def
 *log-spaced* in the step (dense early, sparse late), and their number and size obey two budgets:
 
 * **size**: the file stays below ``max_bytes`` (default 10 MB). A frame of ``M`` points costs
-  :data:`BYTES_PER_POINT` bytes per point (float32 ``x, p`` and an RGBA colour; measured 10-12 B)
+  :data:`BYTES_PER_POINT` bytes per point (float32 ``x, p`` and an RGBA colour)
   plus :data:`BYTES_PER_FRAME`; when ``frames x M`` does not fit, fewer points are drawn (down to
   what two frames allow), and with a fixed ``every`` the interval is widened instead.
 * **time**: frames cost at most :data:`OVERHEAD_BUDGET` of the run's kernel time (or
@@ -52,29 +52,29 @@ DEFAULT_MAX_BYTES = 10_000_000
 DEFAULT_MAX_POINTS = 20_000
 #: Most frames of a run by default (besides the first).
 DEFAULT_MAX_FRAMES = 100
-#: Bytes per recorded point and frame (float32 x, p and an RGBA colour: 12 B raw; 10 B measured).
+#: Bytes per recorded point and frame (float32 x, p and an RGBA colour: 12 B raw).
 BYTES_PER_POINT = 12
-#: Bytes per frame besides the points (the series row, time stamps; 2.4 kB measured).
+#: Bytes per frame besides the points (the series row, time stamps; an upper bound).
 BYTES_PER_FRAME = 4096
-#: Bytes of a recording besides its frames (blueprint, parameters, styles; < 20 kB measured).
+#: Bytes of a recording besides its frames (blueprint, parameters, styles; an upper bound).
 BYTES_FIXED = 65_536
 #: Share of the size budget kept for the series rows logged between frames.
 SERIES_SHARE = 0.05
-#: Bytes of one series row between frames (six scalars; ~300 B measured).
+#: Bytes of one series row between frames (six scalars; an upper bound).
 BYTES_PER_SERIES_ROW = 512
-#: Largest share of the run's kernel time spent on frames (half the issue's 10%: noise, I/O)...
+#: Largest share of the run's kernel time spent on frames (half of 10%, for noise and I/O)...
 OVERHEAD_BUDGET = 0.05
 #: ... or this many seconds, whichever is more: a short run still gets a few early frames
 #: (~9 of 10^4 points), at a cost no one waits for.
 MIN_FRAME_SECONDS = 0.02
 
-# Cost model of one frame on the CPU, measured with benchmarks/recording_overhead.py on the
-# 2-core machine: ~2 ms fixed, ~45 ns per recorded point (gather, FTLE, colours, serialisation)
-# and ~35 ns per ensemble point (the full-ensemble summary). It does not depend on the kernel.
+# Cost model of one frame on the CPU, fitted to benchmarks/recording_overhead.py (benchmarks/README.md):
+# a fixed cost, a cost per recorded point (gather, FTLE, colours, serialisation) and one per
+# ensemble point (the full-ensemble summary). It does not depend on the kernel.
 _NS_PER_RECORDED_POINT = 45.0
 _NS_PER_ENSEMBLE_POINT = 35.0
 _FRAME_FIXED_SECONDS = 2.0e-3
-# Only frame_every (the fixed cadence of earlier releases) assumes a kernel speed.
+# Only frame_every (a fixed cadence) assumes a kernel speed.
 _POINT_STEPS_PER_SECOND = 9.0e8
 
 
@@ -115,7 +115,7 @@ def probe_throughput(ensemble: Any, point_steps: float = 1.0e7) -> float:
     """The ensemble's kernel speed, point-steps per second, measured on a copy of its first points.
 
     A copy (same class, device and threads) of at most 65536 points (2^20 on a GPU, which needs
-    many points to be busy) is advanced by ``point_steps`` in one chunk: ~10 ms on 2 CPU cores.
+    many points to be busy) is advanced by ``point_steps`` in one chunk.
     The ensemble itself is not touched.
     """
     from ..ensemble import STATE_FIELDS

@@ -54,8 +54,8 @@ class ViewerUnavailable(RuntimeError):
 def display_available() -> bool:
     """Whether a spawned rerun viewer can open a window: on Linux, an X11 or Wayland display.
 
-    Without one the viewer exits at once and the recording stream waits ~20 s for it, then fails
-    (issue 14, item 5). macOS and Windows always have a desktop session to open it in.
+    Without one the viewer exits at once and the recording stream waits for it, then fails.
+    macOS and Windows always have a desktop session to open it in.
     """
     if not sys.platform.startswith("linux"):
         return True

@@ -27,6 +27,7 @@ steps, seed, init, threshold``); ``threshold`` is the value used, the default re
 from __future__ import annotations
 
 import os
+from importlib import metadata
 from typing import Any
 
 import h5py
@@ -64,9 +65,12 @@ __all__ = ["SweepFile", "FORMAT", "FORMAT_VERSION", "ROW_FIELDS", "read_sweep", 
 
 
 def _version() -> str:
-    from .. import __version__
-
-    return __version__
+    # The installed distribution's version, as warpratchet.__version__ reads it (that module sits
+    # above this one).
+    try:
+        return metadata.version("warpratchet")
+    except metadata.PackageNotFoundError:  # pragma: no cover - running from a source tree
+        return "0+unknown"
 
 
 def _describe(ds: h5py.Dataset, units: str, long_name: str) -> None:

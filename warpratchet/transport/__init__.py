@@ -1,4 +1,4 @@
-"""Transport beyond the mean (issue 16): return times to B, flights, anomalous diffusion.
+"""Transport beyond the mean: return times to B, flights, anomalous diffusion.
 
 * :class:`TransportEnsemble` (:mod:`.ensemble`): an ensemble whose runs also count, in the kernel
   (:mod:`warpratchet.kernels.transport`), the return times to the strip B (Eq. B) and the flights
@@ -7,7 +7,9 @@
 * :mod:`.twin`: the kernel's NumPy twin (tests).
 """
 
+from .fits import bin_masses
 from .histograms import BINS, CARRY_FIELDS, HISTOGRAMS, Histograms, bin_of, edges, open_runs
+from .report import counts_transport, format_transport
 
 __all__ = [
     "BINS",
@@ -15,8 +17,11 @@ __all__ = [
     "HISTOGRAMS",
     "Histograms",
     "TransportEnsemble",
+    "bin_masses",
     "bin_of",
+    "counts_transport",
     "edges",
+    "format_transport",
     "open_runs",
 ]
 

@@ -24,7 +24,9 @@ import numpy as np
 import warp as wp
 
 from ..ensemble import Ensemble
+from ..errors import check_choice, check_optional, check_real
 from ..kernels.transport import advance_map_transport
+from ..observables import THRESHOLD_RULES
 from ..params import MapParams
 from ..runloop import Observer
 from ..state import STATE_FIELDS
@@ -56,12 +58,13 @@ class TransportEnsemble(Ensemble):
 
     Same constructor, samplers and :meth:`run` as ``Ensemble``; the orbit and tangent are
     bitwise a plain ensemble's. Counting starts at the ensemble's step: a point then in B counts
-    its first return gap from that step, any other from its first visit (issue 16).
+    its first return gap from that step, any other from its first visit (docs/transport.md).
     """
 
     _kernel = advance_map_transport
     #: Chaos threshold on the FTLE for the spread's chaotic points (None: ``threshold_rule``'s
-    #: value at each step), set to the run's so that the spread's points are its History's.
+    #: value at each step), the run's (:meth:`classify_with`) so that the spread's points are its
+    #: History's.
     threshold: float | None = None
     #: Rule of the threshold when ``threshold`` is None (:func:`~warpratchet.observables.lyapunov_threshold`).
     threshold_rule: str = "strict"
@@ -70,6 +73,16 @@ class TransportEnsemble(Ensemble):
     def __init__(self, params: MapParams, x0, p0, **kwargs) -> None:
         super().__init__(params, x0, p0, **kwargs)
         self._start_counting(None)
+
+    def classify_with(
+        self, threshold: float | None = None, threshold_rule: str = "strict"
+    ) -> TransportEnsemble:
+        """Classify the spread's chaotic points as the run does: FTLE above ``threshold``, or, when it
+        is None, above ``threshold_rule``'s value at each step (``"strict"`` or ``"positive"``)."""
+        threshold = check_optional(check_real, "threshold", threshold, 0.0)
+        self.threshold_rule = check_choice("threshold_rule", threshold_rule, tuple(THRESHOLD_RULES))
+        self.threshold = threshold
+        return self
 
     @classmethod
     def bytes_per_point(cls) -> int:
@@ -132,7 +145,7 @@ class TransportEnsemble(Ensemble):
         """Every point's FTLE at ``step`` if this chunk end's spread row computed it, else None.
 
         :meth:`summary` (a History row at the same step) takes it instead of computing the same
-        values again (the costly part of a summary, ~20 ms per 10^6 points).
+        values again (the costly part of a summary).
         """
         known = self._known_ftle
         return known[1] if known is not None and known[0] == step == self.step else None

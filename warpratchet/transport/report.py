@@ -13,7 +13,12 @@ import numpy as np
 from .fits import DiffusionFit, tail_fit
 from .histograms import HISTOGRAMS, Histograms
 
-__all__ = ["transport_report", "format_transport"]
+__all__ = ["transport_report", "format_transport", "counts_transport"]
+
+
+def counts_transport(ensemble: Any) -> bool:
+    """Whether ``ensemble`` counts return times and flights (a ``TransportEnsemble``)."""
+    return callable(getattr(ensemble, "transport_state", None))
 
 
 def transport_report(

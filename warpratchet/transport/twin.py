@@ -1,7 +1,7 @@
 """The NumPy twin of the transport kernel (:mod:`warpratchet.kernels.transport`), for tests.
 
 :func:`advance` steps :func:`warpratchet.reference.advance` one iteration at a time (the
-kernels' orbit, bit for bit) and applies the definitions of issue 16 to each step: the gain is
+kernels' orbit, bit for bit) and applies the definitions of docs/transport.md to each step: the gain is
 the change of ``winding``, a visit is ``x`` in B (Eq. B) after the step. Slow (a Python loop over
 steps), exact: its histograms must equal the kernel's count for count.
 """
