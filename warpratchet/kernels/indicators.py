@@ -130,7 +130,7 @@ INDICATORS = Variant(
     _Accumulators,
     _load,
     _store,
-    after_step=_nothing,
+    after_step=None,
     after_check=_after_check,
     cpu_after_check=_after_check_cpu,
 )

@@ -36,6 +36,8 @@ from typing import Any, NamedTuple
 
 import warp as wp
 
+from .runtime import CPU_ISA
+
 __all__ = [
     "INTERLEAVE",
     "RENORM_CHECK_EVERY",
@@ -61,17 +63,10 @@ RENORM_THRESHOLD = 1.0e100
 RENORM_CHECK_EVERY = 8
 
 
-def _has_avx512() -> bool:
-    try:
-        with open("/proc/cpuinfo") as cpuinfo:
-            return any(line.startswith("flags") and " avx512f" in line for line in cpuinfo)
-    except OSError:  # not Linux
-        return False
-
-
-#: Points advanced per Warp thread: 32 where the CPU has AVX-512 (four 8-wide vectors per field
-#: in 32 vector registers), 16 elsewhere (AVX2: 16 registers of 4). See the package docstring.
-INTERLEAVE = 32 if _has_avx512() else 16
+#: Points advanced per Warp thread: 32 on the AVX-512 path (four 8-wide vectors per field in 32
+#: vector registers), 16 on the AVX2 path (16 registers of 4); :data:`.runtime.CPU_ISA` chooses.
+#: A power of two: clang pads a vector of any other length, which the lane structs do not.
+INTERLEAVE = 32 if CPU_ISA == "avx512" else 16
 
 #: One float64 per lane.
 LaneVector = wp.types.vector(length=INTERLEAVE, dtype=wp.float64)
@@ -242,9 +237,7 @@ VECTOR_TYPES = f"""
 typedef double v_t __attribute__((ext_vector_type({INTERLEAVE})));
 """
 
-_STEP_CPU = (
-    VECTOR_TYPES
-    + """
+_LOAD_STATE_CPU = """
 v_t x, q, w, dx, dp;
 __builtin_memcpy(&x, &s.x, sizeof(v_t));
 __builtin_memcpy(&q, &s.q, sizeof(v_t));
@@ -252,6 +245,11 @@ __builtin_memcpy(&w, &s.w, sizeof(v_t));
 __builtin_memcpy(&dx, &s.dx, sizeof(v_t));
 __builtin_memcpy(&dp, &s.dp, sizeof(v_t));
 const v_t one = 1.0, zero = 0.0;
+"""
+
+#: One step on the local lane vectors ``x, q, w, dx, dp``; leaves the step's facts in the locals
+#: ``gain`` and ``in_strip`` (dropped by the compiler where nothing reads them).
+_STEP_ARITHMETIC_CPU = """
 const auto in_left = x <= p.b1;
 const auto in_middle = x < p.right;
 const v_t f_left = p.l1 * x;
@@ -279,14 +277,38 @@ dp = dp + k_slope_dx;
 dx = dx + dp;
 const v_t gain = fl + lift;
 const v_t in_strip = ((x <= p.b1) | (x >= p.right)) ? one : zero;
+"""
+
+_STORE_STATE_CPU = """
 __builtin_memcpy(&s.x, &x, sizeof(v_t));
 __builtin_memcpy(&s.q, &q, sizeof(v_t));
 __builtin_memcpy(&s.w, &w, sizeof(v_t));
 __builtin_memcpy(&s.dx, &dx, sizeof(v_t));
 __builtin_memcpy(&s.dp, &dp, sizeof(v_t));
+"""
+
+_STEP_CPU = (
+    VECTOR_TYPES
+    + _LOAD_STATE_CPU
+    + "{"
+    + _STEP_ARITHMETIC_CPU
+    + """
 __builtin_memcpy(&s.gain, &gain, sizeof(v_t));
 __builtin_memcpy(&s.in_strip, &in_strip, sizeof(v_t));
-"""
+}"""
+    + _STORE_STATE_CPU
+)
+
+# ``count`` steps with the lanes in local vectors throughout: the loop holds no stores, so the
+# map's constants are computed once, outside it, and nothing but register pressure sends a
+# lane vector to memory. The step's facts are not kept.
+_STEPS_CPU = (
+    VECTOR_TYPES
+    + _LOAD_STATE_CPU
+    + "for (int i = 0; i < count; i++) {"
+    + _STEP_ARITHMETIC_CPU
+    + "}"
+    + _STORE_STATE_CPU
 )
 
 #: C++ for the CPU snippets: ``log_lanes::run(in, use, out)`` sets ``out[k] = log(in[k])`` for the
@@ -346,6 +368,16 @@ if (__builtin_reduce_or(big) != 0) {{
 def _step_cpu(s: wp.ref[Lanes], p: Coefficients): ...
 
 
+@wp.func_native(_STEPS_CPU)
+def _steps_cpu(s: wp.ref[Lanes], p: Coefficients, count: wp.int32): ...
+
+
+@wp.func
+def _steps_portable(s: wp.ref[Lanes], p: Coefficients, count: wp.int32):
+    for _i in range(count):
+        _step_portable(s, p)
+
+
 @wp.func_native(_RENORM_CPU)
 def _renorm_cpu(s: wp.ref[Lanes]): ...
 
@@ -359,7 +391,8 @@ class Body(NamedTuple):
     store: wp.Function  # (State, Lanes, first, spacing, n)
     step: wp.Function  # (ref Lanes, Coefficients): one iteration, facts included
     renorm: wp.Function  # (ref Lanes): the renormalisation check
+    steps: wp.Function  # (ref Lanes, Coefficients, count: int32): count iterations, facts not kept
 
 
-PORTABLE = Body("portable", _strided, _load, _store, _step_portable, _renorm_portable)
-CPU = Body("cpu", _blocks, _load, _store, _step_cpu, _renorm_cpu)
+PORTABLE = Body("portable", _strided, _load, _store, _step_portable, _renorm_portable, _steps_portable)
+CPU = Body("cpu", _blocks, _load, _store, _step_cpu, _renorm_cpu, _steps_cpu)
