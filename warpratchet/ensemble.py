@@ -29,7 +29,7 @@ from . import kernels
 from .errors import ParameterError, check_choice, check_count, check_optional, check_real
 from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from .limits import MAX_POINTS, MAX_STEP, check_kernel_range, check_memory, format_bytes
-from .observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, Summary, summarize
+from .observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, Summary, lyapunov, summarize
 from .params import MapParams
 from .runloop import Observer, archive_sink, check_observers, default_chunk_steps, default_threads, run_chunks
 from .sampling import _BUILD_CHUNK, grid_nodes, sample_grid, sample_strip, sample_torus, sampled_chunks
@@ -368,6 +368,28 @@ class Ensemble:
         A plain ensemble never has it (:class:`~warpratchet.transport.TransportEnsemble` does)."""
         return None
 
+    def _ftle_on_threads(self) -> np.ndarray | None:
+        """Every point's FTLE at the current step, computed on the run's threads in blocks (the
+        FTLE is elementwise: the bits of ``lyapunov``), or None to leave it to ``summarize``: one
+        thread, a GPU, or more points than one summary chunk (whose FTLE ``summarize`` never holds
+        all at once)."""
+        if self.threads < 2 or self.points > SUMMARY_CHUNK or not wp.get_device(self.device).is_cpu:
+            return None
+        views = self.views()
+        ftle = np.empty(self.points)
+        bounds = np.linspace(0, self.points, 4 * self.threads + 1).astype(int)
+
+        def block(lo: int, hi: int) -> None:
+            part = {name: views[name][lo:hi] for name in ("dx", "dp", "log_stretch")}
+            with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # summarize refuses
+                ftle[lo:hi] = lyapunov(part, self.step)
+
+        with ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet-ftle") as pool:
+            futures = [pool.submit(block, lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)]
+            for future in futures:
+                future.result()
+        return ftle
+
     def summary(self, threshold: float | None = None, rule: str = "strict", *, warn: bool = True) -> Summary:
         """:func:`~warpratchet.observables.summarize` of the current state: A, FTLE, chaotic fraction.
 
@@ -386,6 +408,8 @@ class Ensemble:
         result = self._summaries.get(key)
         if result is None:
             ftle = self.known_ftle(self.step)
+            if ftle is None:
+                ftle = self._ftle_on_threads()
             result = summarize(self.views(), self.step, threshold, rule, ftle)
             self._summaries[key] = result
         if warn:

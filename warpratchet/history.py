@@ -32,6 +32,10 @@ chaotic orbits are those above the threshold at the last block step. Why a subsa
 during the run: the blocks must be cut from one run at equal times, which no end-of-run state can
 give afterwards; 4096 orbits give every block length 4096 x (blocks) samples, enough for the
 variance-time fit (module :mod:`warpratchet.convergence`), for 4 MB of archive at 64 blocks.
+The run need not stop at the block steps: the history copies the subsample's points when the run
+begins and advances that copy itself to each block step it has passed (points are independent and
+checks sit at global steps, so the copy's states are the run's, bit for bit, at the cost of
+advancing 4096 more points).
 
 :meth:`History.convergence` turns both into the verdict (:func:`warpratchet.verdict.assess`):
 the drift of A between n/2 and n in units of its standard error and the robust error.
@@ -52,7 +56,7 @@ from typing import Any
 
 import numpy as np
 
-from .ensemble import STATE_FIELDS
+from .ensemble import STATE_FIELDS, Ensemble
 from .errors import check_choice, check_count, check_optional, check_real
 from .observables import SUMMARY_CHUNK, THRESHOLD_RULES, Summary, chaotic_mask, lyapunov, momentum_gain
 from .runloop import Observer
@@ -245,6 +249,7 @@ class History(Observer):
         self.target: int | None = None
         self._pending: list[int] = []
         self._block_pending: list[int] = []
+        self._blocks: Ensemble | None = None  # the subsample's points, advanced to the block steps
 
     # -- construction from a record ----------------------------------------------------------------
     @classmethod
@@ -308,38 +313,48 @@ class History(Observer):
         self._block_pending = [
             n for n in block_steps(ensemble.step, target_step, self.blocks) if n not in done
         ]
+        self._blocks = None
+        if self._block_pending:
+            # The orbit and tangent of every kernel variant are advance_map's, bit for bit.
+            views = ensemble.views()
+            sub = {name: np.asarray(views[name])[self.block_indices] for name in STATE_FIELDS}
+            self._blocks = Ensemble.from_state(
+                ensemble.params, sub, ensemble.step, device=ensemble.device, threads=1
+            )
 
     def next_stop(self, step: int) -> int | None:
-        """The next history or block step after ``step`` (the run loop ends a chunk there)."""
-        later = [n for n in (*self._pending, *self._block_pending) if n > step]
+        """The next history row's step after ``step`` (the run loop ends a chunk there; block
+        steps need no stop, module docstring)."""
+        later = [n for n in self._pending if n > step]
         return min(later) if later else None
 
     def overdue(self, step: int) -> list[int]:
-        """Steps before ``step`` still waiting for their row or block (a run that did not stop there)."""
-        return sorted(n for n in (*self._pending, *self._block_pending) if n < step)
+        """Row steps before ``step`` still waiting for their row (a run that did not stop there)."""
+        return sorted(n for n in self._pending if n < step)
 
     def after_chunk(self, ensemble: Any, seconds: float) -> None:
         step = ensemble.step
-        row_due = step in self._pending
-        block_due = step in self._block_pending
-        if not (row_due or block_due):
-            return  # a regular chunk end between two history steps, or a step already recorded
-        views = ensemble.views()  # zero-copy on the CPU
-        if row_due:
+        for block_step in [n for n in self._block_pending if n <= step]:
+            self._record_block(block_step)
+        if step in self._pending:
             self._pending = [n for n in self._pending if n > step]
             # the ensemble's summary at this step: computed once for every sink that needs it
-            row = history_row(views, ensemble.summary(self.threshold, self.rule, warn=False))
+            row = history_row(ensemble.views(), ensemble.summary(self.threshold, self.rule, warn=False))
             for name in HISTORY_FIELDS:
                 self.rows[name].append(row[name])
-        if block_due:
-            self._block_pending = [n for n in self._block_pending if n > step]
-            sub = {name: views[name][self.block_indices] for name in STATE_FIELDS}
-            self.block_rows["block_step"].append(int(step))
-            self.block_rows["block_gain"].append(momentum_gain(sub))
-            self.block_rows["block_ftle"].append(lyapunov(sub, step))
+
+    def _record_block(self, step: int) -> None:
+        """Advance the subsample's copy to ``step`` and record its gain and FTLE there."""
+        self._block_pending = [n for n in self._block_pending if n > step]
+        self._blocks.run(step - self._blocks.step)
+        sub = self._blocks.views()
+        self.block_rows["block_step"].append(int(step))
+        self.block_rows["block_gain"].append(momentum_gain(sub))
+        self.block_rows["block_ftle"].append(lyapunov(sub, step))
 
     def end(self, ensemble: Any) -> None:
         self.target = None
+        self._blocks = None
 
     # -- results -----------------------------------------------------------------------------------
     def as_dict(self) -> dict[str, list]:
