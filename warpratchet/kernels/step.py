@@ -270,8 +270,10 @@ const v_t lift = wrap ? one : zero;
 const v_t w_fl = w + fl;
 w = w_fl + lift;
 x = x + q;
-const v_t x_wrapped = x - one;
-x = x >= one ? x_wrapped : x;
+/* x - (x >= 1 ? 1 : 0): x - 0.0 is x (x >= 0), so these are the bits of the choice, with a mask
+   and a subtraction where the choice needs a blend (a three-micro-op one on some Intel cores). */
+const v_t unit = x >= one ? one : zero;
+x = x - unit;
 const v_t k_slope_dx = k_slope * dx;
 dp = dp + k_slope_dx;
 dx = dx + dp;
