@@ -98,8 +98,8 @@ def _target() -> str:
 #: ``a*b + c`` written in one C++ expression (Warp's generated code never writes one; the CPU
 #: snippets are written one operation per statement, and this makes sure). ``-march=native`` gives
 #: AVX-512 where the CPU has it; ``-mprefer-vector-width=512`` keeps the lane vectors in 512-bit
-#: registers also where LLVM's tuning for the CPU prefers 256 bits (measured here: 256 gave 0.67
-#: of the C program's throughput, 512 and the default 0.81-0.84; see the package docstring).
+#: registers also where LLVM's tuning for the CPU prefers 256 bits, which splits them and runs
+#: slower (measurements in ``benchmarks/README.md``).
 CPU_COMPILER_FLAGS = (
     f"{_target()} -mprefer-vector-width=512 -ffp-contract=off -mllvm=-inline-threshold=9000"
     " -mllvm=-inline-cold-callsite-threshold=3000 -mllvm=-slp-recursion-max-depth=4"
