@@ -37,7 +37,7 @@ ens.step = 3
 start = ens.state()
 try:
     ens.run(700, chunk_steps=97)
-except RuntimeError as error:
+except ValueError as error:  # ParameterError
     print("refused:", error)
     sys.exit(3)
 expected = reference.advance(p, start, 700, step0=3)
@@ -79,6 +79,14 @@ def test_the_avx512_path_compiles_and_runs_where_the_cpu_has_it():
         assert "-target-cpu znver4" in done.stdout
         assert done.returncode == 3, done.stderr
         assert "which this CPU cannot run" in done.stdout
+        # and the CLI says so in one line, exit status 2 (the user's setting), no traceback
+        env = {**os.environ, runtime.CPU_ISA_VARIABLE: "avx512"}
+        argv = [sys.executable, "-m", "warpratchet", "run", "--K", "3", "--b1", "0.1", "--b2", "0.01"]
+        argv += ["--points", "10", "--steps", "10", "--quiet"]
+        cli = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=900)
+        assert cli.returncode == 2 and cli.stdout == ""
+        lines = cli.stderr.strip().splitlines()
+        assert len(lines) == 1 and "which this CPU cannot run" in lines[0], cli.stderr
 
 
 def test_an_unknown_instruction_set_is_refused_in_one_line():

@@ -75,9 +75,10 @@ CPU_ISA = _cpu_isa()
 
 
 def check_cpu_isa_runs() -> None:
-    """Raise ``RuntimeError`` if the CPU body was built for an instruction set this CPU lacks."""
+    """Raise :class:`~warpratchet.errors.ParameterError` if the CPU body was built for an
+    instruction set this CPU lacks (the user's setting; running it would crash the process)."""
     if CPU_ISA == "avx512" and not _NATIVE_AVX512:
-        raise RuntimeError(
+        raise ParameterError(
             f"{CPU_ISA_VARIABLE} = avx512 builds the AVX-512 code path, which this CPU cannot run; "
             "unset it to run here"
         )
