@@ -9,10 +9,14 @@ scalar float (``...sd``/``...ss`` on ``xmm``), and the rest (integer, masks, bra
 accesses (``(%rsp)``) count spills. ``points per pass`` is the lanes one pass of the loop
 advances (``INTERLEAVE``), so ``instructions per point-step`` compares kernels of any width.
 
+``--asm`` prints the first kernel's step loop instead, without its branches, as text that
+``llvm-mca`` reads (the port-throughput bound of one pass, ``benchmarks/README.md``).
+
 Usage::
 
     python benchmarks/instruction_mix.py [--json]
     python benchmarks/instruction_mix.py --object OLD.o --function advance_map_ --points 8
+    python benchmarks/instruction_mix.py --function advance_map_ --asm | llvm-mca -mcpu=znver3
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from typing import Any
 
 CLASSES = ("zmm", "ymm", "xmm", "scalar", "other")
 FLOOR = re.compile(r"rndscale|round")
+COMMENT = re.compile(r"\s*#.*$")
 
 
 def _disassemble(obj: Path) -> dict[str, list[tuple[int, str, str]]]:
@@ -59,8 +64,9 @@ def _kind(mnemonic: str, operands: str) -> str:
     return "other"
 
 
-def step_loop_mix(code: list[tuple[int, str, str]]) -> dict[str, Any] | None:
-    """Counts for the innermost loop that contains a floor instruction (None if there is none)."""
+def step_loop(code: list[tuple[int, str, str]]) -> list[tuple[str, str]] | None:
+    """``(mnemonic, operands)`` of the innermost loop that contains a floor instruction (None if
+    there is none)."""
     loops = []
     for address, mnemonic, operands in code:
         target = re.match(r"([0-9a-f]+)", operands)
@@ -72,7 +78,14 @@ def step_loop_mix(code: list[tuple[int, str, str]]) -> dict[str, Any] | None:
     if not with_floor:
         return None
     _, lo, hi = min(with_floor)
-    body = [(m, o) for a, m, o in code if lo <= a <= hi]
+    return [(m, o) for a, m, o in code if lo <= a <= hi]
+
+
+def step_loop_mix(code: list[tuple[int, str, str]]) -> dict[str, Any] | None:
+    """Counts for the innermost loop that contains a floor instruction (None if there is none)."""
+    body = step_loop(code)
+    if body is None:
+        return None
     counts = collections.Counter(_kind(m, o) for m, o in body)
     return {
         "instructions": len(body),
@@ -101,6 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--function", action="append", help="function name prefix (repeatable)")
     parser.add_argument("--points", type=int, help="points one pass of the loop advances")
     parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    parser.add_argument("--asm", action="store_true", help="print the step loop for llvm-mca")
     args = parser.parse_args(argv)
     if shutil.which("objdump") is None:
         print("instruction_mix.py: objdump not found (binutils)", file=sys.stderr)
@@ -112,9 +126,15 @@ def main(argv: list[str] | None = None) -> int:
     for prefix in prefixes:
         # Warp names a kernel's CPU entry point <kernel>_<hash>_cpu_forward.
         entry = re.compile(re.escape(prefix) + r"[0-9a-f]+_cpu_forward$")
-        name = next((f for f in functions if entry.match(f)), None)
+        name = next((f for f in functions if entry.match(f) or f == prefix), None)
         if name is None:
             continue
+        if args.asm:
+            body = step_loop(functions[name]) or []
+            # branches and padding dropped: llvm-mca treats the text as one loop body
+            kept = [(m, COMMENT.sub("", o)) for m, o in body if not m.startswith(("j", "nop"))]
+            print("\n".join(f"{m} {o}" for m, o in kept))
+            return 0
         mix = step_loop_mix(functions[name])
         if mix is not None:
             mix["points_per_pass"] = points

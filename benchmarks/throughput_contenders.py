@@ -2,7 +2,8 @@
 
 Every contender advances a copy of the same state by the same float64 arithmetic (see
 ``throughput.py``) and returns its end state with the wall and CPU seconds the advancing took;
-nothing else is timed. Unavailable contenders (no Numba, no gcc, no AVX-512) carry a one-line reason instead.
+nothing else is timed. Unavailable contenders (no Numba, no gcc, no AVX-512) carry a one-line reason
+instead.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import numpy as np
 from warpratchet import Ensemble, MapParams, reference
 from warpratchet.ensemble import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from warpratchet.force import Force, python_source
+from warpratchet.kernels.runtime import CPU_ISA
 from warpratchet.sumrule import IndicatorEnsemble
 
 #: The benchmark's ensemble: strip B of Eq. (B), seed 1.
@@ -32,10 +34,13 @@ EVOLVED = ("x", "q", "winding", "dx", "dp", "log_stretch")
 
 C_DIR = Path(__file__).resolve().parent / "c"
 C_SOURCE = C_DIR / "ratchet_map.c"
-C_AVX512_SOURCE = C_DIR / "ratchet_map_avx512.c"
 C_FLAGS = ("-O3", "-march=native", "-fopenmp", "-ffp-contract=off")
-#: 8-wide vectors per block of the AVX-512 program; both are built, the faster counts.
-C_AVX512_VECTORS = (6, 8)
+#: The hand-vectorised programs: ISA -> (source, /proc/cpuinfo flag it needs, label, vectors per
+#: block: each is built, the faster counts per measurement, doubles per vector).
+C_SIMD = {
+    "avx2": (C_DIR / "ratchet_map_avx2.c", "avx2", "C, hand-vectorised (AVX2)", (3, 4), 4),
+    "avx512": (C_DIR / "ratchet_map_avx512.c", "avx512f", "C, hand-vectorised (AVX-512)", (6, 8), 8),
+}
 
 State = dict[str, np.ndarray]
 
@@ -70,7 +75,7 @@ Advance = Callable[[State, int, int], tuple[State, Timing]]
 class Contender:
     """One row of the table."""
 
-    key: str  # "numpy", "numba", "c", "c_avx512", "warpratchet", "warpratchet_indicators"
+    key: str  # "numpy", "numba", "c", "c_avx2", "c_avx512", "warpratchet", "warpratchet_indicators"
     label: str
     threads: int
     advance: Advance | None  # None: unavailable
@@ -218,31 +223,35 @@ def c_contenders(params: MapParams, threads: list[int], workdir: Path) -> tuple[
     return [Contender("c", "C OpenMP", t, _c_advance([lib], params, t)) for t in threads], build
 
 
-def _has_avx512() -> bool:
+def _cpu_has(flag: str) -> bool:
     try:
         with open("/proc/cpuinfo") as cpuinfo:
-            return any(line.startswith("flags") and " avx512f" in line for line in cpuinfo)
+            return any(line.startswith("flags") and f" {flag}" in line for line in cpuinfo)
     except OSError:
         return False
 
 
-def c_avx512_contenders(params: MapParams, threads: list[int], workdir: Path) -> tuple[list[Contender], str]:
-    """``c/ratchet_map_avx512.c``, built with 6 and with 8 vectors per block; the faster counts."""
-    label = "C, hand-vectorised (AVX-512)"
-    if not _has_avx512():
-        reason = "unavailable: this CPU has no AVX-512"
-        return [Contender("c_avx512", label, t, None, reason) for t in threads], reason
+def c_simd_contenders(
+    isa: str, params: MapParams, threads: list[int], workdir: Path
+) -> tuple[list[Contender], str]:
+    """The hand-vectorised C of ``isa`` (:data:`C_SIMD`), built with each of its vector counts per
+    block; the faster counts. Unavailable (with the reason) where the CPU lacks the ISA."""
+    source, flag, label, vectors, width = C_SIMD[isa]
+    key = f"c_{isa}"
+    if not _cpu_has(flag):
+        reason = f"unavailable: this CPU has no {label.split('(')[1].rstrip(')')}"
+        return [Contender(key, label, t, None, reason) for t in threads], reason
     libs = []
-    for nv in C_AVX512_VECTORS:
-        lib, build = _build_c(C_AVX512_SOURCE, workdir / f"ratchet_map_avx512_nv{nv}.so", (f"-DNV={nv}",))
+    for nv in vectors:
+        lib, build = _build_c(source, workdir / f"{source.stem}_nv{nv}.so", (f"-DNV={nv}",))
         if lib is None:
-            return [Contender("c_avx512", label, t, None, build) for t in threads], build
+            return [Contender(key, label, t, None, build) for t in threads], build
         libs.append(lib)
     build = (
-        f"{build}: {' '.join(C_FLAGS)}, AVX-512 intrinsics, NV = "
-        f"{' and '.join(map(str, C_AVX512_VECTORS))} 8-wide vectors per block (the faster per measurement)"
+        f"{build}: {' '.join(C_FLAGS)}, {isa} intrinsics, NV = {' and '.join(map(str, vectors))} "
+        f"{width}-wide vectors per block (the faster per measurement)"
     )
-    return [Contender("c_avx512", label, t, _c_advance(libs, params, t)) for t in threads], build
+    return [Contender(key, label, t, _c_advance(libs, params, t)) for t in threads], build
 
 
 # -- warpratchet ------------------------------------------------------------------------------------
@@ -270,7 +279,8 @@ def warp_contenders(
     Ensemble.sample(params, 64, init=INIT, seed=SEED, threads=1, device=device).run(16)
     build = f"warp {version('warp-lang')} {device}: Ensemble.run, "
     if device == "cpu":
-        build += f"{INTERLEAVE} points per Warp thread, one Warp launch per Python thread"
+        build += f"{INTERLEAVE} points per Warp thread, the {CPU_ISA} code path"
+        build += ", one Warp launch per Python thread"
     else:
         build += "one point per GPU thread"
     label = _label("warpratchet", device)

@@ -271,3 +271,16 @@ def test_an_archive_refuses_a_history_it_cannot_keep(tmp_path):
         ens.run(1000, [sink], chunk_steps=500)
     sink.close()
     assert not (tmp_path / "a.h5").exists() and not (tmp_path / "b.h5").exists()
+
+
+def test_the_run_stops_only_at_history_rows_not_at_block_steps():
+    """The block records come from the history's own copy of the subsample, so a run ends chunks at
+    its row steps and its regular chunk ends only (each stop is a launch boundary)."""
+    ens = Ensemble.sample(PARAMS, 500, "strip", seed=2, threads=2)
+    stops = []
+    real = ens._advance
+    ens._advance = lambda steps, pool: (stops.append(ens.step + steps), real(steps, pool))
+    history = History(block_points=100)
+    ens.run(3000, [history], chunk_steps=3000)
+    assert stops == history_steps(0, 3000)
+    assert history.block_rows["block_step"] == block_steps(0, 3000)

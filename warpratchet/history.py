@@ -32,6 +32,10 @@ chaotic orbits are those above the threshold at the last block step. Why a subsa
 during the run: the blocks must be cut from one run at equal times, which no end-of-run state can
 give afterwards; 4096 orbits give every block length 4096 x (blocks) samples, enough for the
 variance-time fit (module :mod:`warpratchet.convergence`), for 4 MB of archive at 64 blocks.
+The run need not stop at the block steps: the history copies the subsample's points when the run
+begins and advances that copy itself to each block step it has passed (points are independent and
+checks sit at global steps, so the copy's states are the run's, bit for bit, at the cost of
+advancing 4096 more points).
 
 :meth:`History.convergence` turns both into the verdict (:func:`warpratchet.verdict.assess`):
 the drift of A between n/2 and n in units of its standard error and the robust error.
@@ -53,7 +57,7 @@ from typing import Any
 
 import numpy as np
 
-from .ensemble import STATE_FIELDS
+from .ensemble import STATE_FIELDS, Ensemble
 from .errors import check_choice, check_count, check_optional, check_real, renamed_keyword
 from .observables import SUMMARY_CHUNK, THRESHOLD_RULES, Summary, chaotic_mask, lyapunov, momentum_gain
 from .runloop import Observer
@@ -147,16 +151,23 @@ def block_subsample(points: int, seed: int | None, size: int = BLOCK_POINTS) -> 
     return salted_subsample(points, seed, m, _BLOCK_SALT)
 
 
-def _variance(state: Mapping[str, np.ndarray]) -> float:
+def _none(step: int) -> None:
+    return None
+
+
+def _variance(state: Mapping[str, np.ndarray], gain: np.ndarray | None = None) -> float:
     """Variance (ddof 1) of ``p_n - p_0`` over all points, in two passes over chunks of
     :data:`~warpratchet.observables.SUMMARY_CHUNK` points (temporaries of a few MB for any
-    ensemble; one chunk keeps its gains for the second pass instead of computing them again)."""
+    ensemble; one chunk keeps its gains for the second pass instead of computing them again, or
+    takes ``gain``, every point's :func:`momentum_gain`, if the caller has it)."""
     n = len(state["p0"])
     if n < 2:
         return math.nan
     fields = ("winding", "q", "p0")
     parts = [{k: state[k][lo : lo + SUMMARY_CHUNK] for k in fields} for lo in range(0, n, SUMMARY_CHUNK)]
-    kept = momentum_gain(parts[0]) if len(parts) == 1 else None
+    kept = None
+    if len(parts) == 1:
+        kept = momentum_gain(parts[0]) if gain is None else gain
     mean = math.fsum(float(np.add.reduce(momentum_gain(p) if kept is None else kept)) for p in parts) / n
     squares = 0.0
     for part in parts:
@@ -165,7 +176,9 @@ def _variance(state: Mapping[str, np.ndarray]) -> float:
     return squares / (n - 1)
 
 
-def history_row(state: Mapping[str, np.ndarray], summary: Summary) -> dict[str, Any]:
+def history_row(
+    state: Mapping[str, np.ndarray], summary: Summary, gain: np.ndarray | None = None
+) -> dict[str, Any]:
     """One history row (:data:`HISTORY_FIELDS`) of a state and its summary.
 
     Parameters
@@ -175,6 +188,8 @@ def history_row(state: Mapping[str, np.ndarray], summary: Summary) -> dict[str, 
     summary : Summary
         :func:`~warpratchet.observables.summarize` of ``state`` at its global step (``>= 1``),
         with the run's threshold or rule: the row's first six fields are the summary's.
+    gain : ndarray, shape (points,), optional
+        :func:`~warpratchet.observables.momentum_gain` of ``state``, if the caller has it.
     """
     step = summary.step
     n_c = summary.chaotic_points
@@ -188,7 +203,7 @@ def history_row(state: Mapping[str, np.ndarray], summary: Summary) -> dict[str, 
         "sigma": summary.lyapunov,
         "chaotic_fraction": summary.chaotic_fraction,
         "chaotic_points": n_c,
-        "var_dp_all": _variance(state),
+        "var_dp_all": _variance(state, gain),
         "var_dp_chaotic": chaotic,
     }
 
@@ -247,6 +262,7 @@ class History(Observer):
         self.target: int | None = None
         self._pending: list[int] = []
         self._block_pending: list[int] = []
+        self._blocks: Ensemble | None = None  # the subsample's points, advanced to the block steps
 
     # -- construction from a record ----------------------------------------------------------------
     @classmethod
@@ -316,38 +332,49 @@ class History(Observer):
         self._block_pending = [
             n for n in block_steps(ensemble.step, target_step, self.blocks) if n not in done
         ]
+        self._blocks = None
+        if self._block_pending:
+            # The orbit and tangent of every kernel variant are advance_map's, bit for bit.
+            views = ensemble.views()
+            sub = {name: np.asarray(views[name])[self.block_indices] for name in STATE_FIELDS}
+            self._blocks = Ensemble.from_state(
+                ensemble.params, sub, ensemble.step, device=ensemble.device, threads=1
+            )
 
     def next_stop(self, step: int) -> int | None:
-        """The next history or block step after ``step`` (the run loop ends a chunk there)."""
-        later = [n for n in (*self._pending, *self._block_pending) if n > step]
+        """The next history row's step after ``step`` (the run loop ends a chunk there; block
+        steps need no stop, module docstring)."""
+        later = [n for n in self._pending if n > step]
         return min(later) if later else None
 
     def overdue(self, step: int) -> list[int]:
-        """Steps before ``step`` still waiting for their row or block (a run that did not stop there)."""
-        return sorted(n for n in (*self._pending, *self._block_pending) if n < step)
+        """Row steps before ``step`` still waiting for their row (a run that did not stop there)."""
+        return sorted(n for n in self._pending if n < step)
 
     def after_chunk(self, ensemble: Any, seconds: float) -> None:
         step = ensemble.step
-        row_due = step in self._pending
-        block_due = step in self._block_pending
-        if not (row_due or block_due):
-            return  # a regular chunk end between two history steps, or a step already recorded
-        views = ensemble.views()  # zero-copy on the CPU
-        if row_due:
+        for block_step in [n for n in self._block_pending if n <= step]:
+            self._record_block(block_step)
+        if step in self._pending:
             self._pending = [n for n in self._pending if n > step]
             # the ensemble's summary at this step: computed once for every sink that needs it
-            row = history_row(views, ensemble.summary(self.threshold, self.threshold_rule, warn=False))
+            summary = ensemble.summary(self.threshold, self.threshold_rule, warn=False)
+            row = history_row(ensemble.views(), summary, getattr(ensemble, "known_gain", _none)(step))
             for name in HISTORY_FIELDS:
                 self.rows[name].append(row[name])
-        if block_due:
-            self._block_pending = [n for n in self._block_pending if n > step]
-            sub = {name: views[name][self.block_indices] for name in STATE_FIELDS}
-            self.block_rows["block_step"].append(int(step))
-            self.block_rows["block_gain"].append(momentum_gain(sub))
-            self.block_rows["block_ftle"].append(lyapunov(sub, step))
+
+    def _record_block(self, step: int) -> None:
+        """Advance the subsample's copy to ``step`` and record its gain and FTLE there."""
+        self._block_pending = [n for n in self._block_pending if n > step]
+        self._blocks.run(step - self._blocks.step)
+        sub = self._blocks.views()
+        self.block_rows["block_step"].append(int(step))
+        self.block_rows["block_gain"].append(momentum_gain(sub))
+        self.block_rows["block_ftle"].append(lyapunov(sub, step))
 
     def end(self, ensemble: Any) -> None:
         self.target = None
+        self._blocks = None
 
     # -- results -----------------------------------------------------------------------------------
     def as_dict(self) -> dict[str, list]:

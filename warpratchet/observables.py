@@ -264,12 +264,19 @@ class _Sums:
 
 
 def _per_point(
-    state: dict[str, np.ndarray], step: int, lo: int, hi: int, ftle: np.ndarray | None = None
+    state: dict[str, np.ndarray],
+    step: int,
+    lo: int,
+    hi: int,
+    ftle: np.ndarray | None = None,
+    gain: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """FTLE (``ftle[lo:hi]`` if given) and ``A_n`` of points ``lo:hi`` (views of ``state``, no copies)."""
+    """FTLE (``ftle[lo:hi]`` if given) and ``A_n`` (``gain[lo:hi] / step`` if given: the bits of
+    :func:`acceleration`) of points ``lo:hi`` (views of ``state``, no copies)."""
     part = {name: state[name][lo:hi] for name in ("winding", "q", "p0", "dx", "dp", "log_stretch")}
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # non-finite: refused by the caller
-        return lyapunov(part, step) if ftle is None else ftle[lo:hi], acceleration(part, step)
+        exponents = lyapunov(part, step) if ftle is None else ftle[lo:hi]
+        return exponents, acceleration(part, step) if gain is None else gain[lo:hi] / step
 
 
 @renamed_keyword("rule", "threshold_rule")
@@ -279,6 +286,7 @@ def summarize(
     threshold: float | None = None,
     threshold_rule: str = "strict",
     ftle: np.ndarray | None = None,
+    gain: np.ndarray | None = None,
 ) -> Summary:
     """Mean ``A_n`` over chaotic points with its standard error, FTLE statistics, chaotic fraction.
 
@@ -308,7 +316,8 @@ def summarize(
     array would: the same error bound (``O(log N)`` roundings), different last bits.
 
     ``ftle``: :func:`lyapunov` of ``state`` at ``step`` if the caller has it already (shape
-    ``(points,)``; the costly part of a summary), else computed here.
+    ``(points,)``; the costly part of a summary), else computed here; ``gain`` likewise
+    :func:`momentum_gain` of ``state``.
 
     Raises
     ------
@@ -323,8 +332,9 @@ def summarize(
     if threshold is None:
         threshold = lyapunov_threshold(step, threshold_rule)
     n = len(state["log_stretch"])
-    if ftle is not None and np.shape(ftle) != (n,):
-        raise ValueError(f"ftle has shape {np.shape(ftle)}, expected ({n},)")
+    for name, given in (("ftle", ftle), ("gain", gain)):
+        if given is not None and np.shape(given) != (n,):
+            raise ValueError(f"{name} has shape {np.shape(given)}, expected ({n},)")
     bounds = [(lo, min(n, lo + SUMMARY_CHUNK)) for lo in range(0, max(n, 1), SUMMARY_CHUNK)]
     # One chunk: keep its per-point values for the second pass instead of computing them again.
     kept = {}
@@ -333,7 +343,7 @@ def summarize(
     chaotic_points = n_ambiguous = 0
     ftle_min = math.inf
     for lo, hi in bounds:
-        ftle, acc = _per_point(state, step, lo, hi, known)
+        ftle, acc = _per_point(state, step, lo, hi, known, gain)
         for values, name, why in (
             (ftle, "FTLE", "the tangent overflowed float64"),
             (acc, "A_n", "x, q, winding or p0 is not finite"),
@@ -361,7 +371,7 @@ def summarize(
     squares_a, squares_ftle, deviations = _Sums(), _Sums(), _Sums()
     if chaotic_points > 1 or n_ambiguous:
         for lo, hi in bounds:
-            ftle, acc = kept.get(lo) or _per_point(state, step, lo, hi, known)
+            ftle, acc = kept.get(lo) or _per_point(state, step, lo, hi, known, gain)
             mask = ftle > threshold
             d_a = acc[mask] - a_mean
             d_ftle = ftle[mask] - ftle_mean

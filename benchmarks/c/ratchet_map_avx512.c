@@ -33,33 +33,14 @@
 #ifndef NV
 #error "compile with -DNV=<vectors per block>"
 #endif
-#include "renorm.h"
 
-#define BLOCK (8 * NV)
+#define WIDTH 8
+typedef __m512d vec_t;
+#define SET1 _mm512_set1_pd
+#define LOADU _mm512_loadu_pd
+#define STOREU _mm512_storeu_pd
 
-typedef struct {
-    __m512d K, b1, right, l1, l2, c, k_left, k_middle, k_right;
-} map_t;
-
-/* |dx| > threshold in some lane: renormalise those lanes (the rare path; log lane by lane). */
-static void renormalise(__mmask8 big, __m512d *dx, __m512d *dp, __m512d *lsum)
-{
-    double a[8], b[8], l[8];
-    _mm512_storeu_pd(a, *dx);
-    _mm512_storeu_pd(b, *dp);
-    _mm512_storeu_pd(l, *lsum);
-    for (int k = 0; k < 8; k++) {
-        if (big >> k & 1) {
-            const double h = sqrt(a[k] * a[k] + b[k] * b[k]);
-            l[k] = l[k] + log(h);
-            a[k] = a[k] / h;
-            b[k] = b[k] / h;
-        }
-    }
-    *dx = _mm512_loadu_pd(a);
-    *dp = _mm512_loadu_pd(b);
-    *lsum = _mm512_loadu_pd(l);
-}
+#include "blocks.h"
 
 /* Advance the BLOCK points at x..lsum (w: whole units gained, float64) by `steps` iterations. */
 static void advance_block(const map_t *m, int64_t step0, int64_t steps, double *x, double *q, double *w,
@@ -68,14 +49,7 @@ static void advance_block(const map_t *m, int64_t step0, int64_t steps, double *
     const __m512d one = _mm512_set1_pd(1.0), zero = _mm512_setzero_pd();
     const __m512d threshold = _mm512_set1_pd(RENORM_THRESHOLD);
     __m512d X[NV], Q[NV], W[NV], DX[NV], DP[NV], L[NV];
-    for (int v = 0; v < NV; v++) {
-        X[v] = _mm512_loadu_pd(x + 8 * v);
-        Q[v] = _mm512_loadu_pd(q + 8 * v);
-        W[v] = _mm512_loadu_pd(w + 8 * v);
-        DX[v] = _mm512_loadu_pd(dx + 8 * v);
-        DP[v] = _mm512_loadu_pd(dp + 8 * v);
-        L[v] = _mm512_loadu_pd(lsum + 8 * v);
-    }
+    LOAD_LANES();
     for (int64_t s = 0; s < steps; s++) {
         for (int v = 0; v < NV; v++) {
             const __m512d xv = X[v];
@@ -107,51 +81,6 @@ static void advance_block(const map_t *m, int64_t step0, int64_t steps, double *
             }
         }
     }
-    for (int v = 0; v < NV; v++) {
-        _mm512_storeu_pd(x + 8 * v, X[v]);
-        _mm512_storeu_pd(q + 8 * v, Q[v]);
-        _mm512_storeu_pd(w + 8 * v, W[v]);
-        _mm512_storeu_pd(dx + 8 * v, DX[v]);
-        _mm512_storeu_pd(dp + 8 * v, DP[v]);
-        _mm512_storeu_pd(lsum + 8 * v, L[v]);
-    }
+    STORE_LANES();
 }
 
-/* The block of points [i, i + count) (count <= BLOCK), padded with copies of the last one. */
-static void advance_points(const map_t *m, int64_t step0, int64_t steps, int64_t i, int64_t count, double *x,
-                           double *q, int64_t *winding, double *dx, double *dp, double *lsum)
-{
-    double bx[BLOCK], bq[BLOCK], bw[BLOCK], bdx[BLOCK], bdp[BLOCK], bl[BLOCK];
-    for (int k = 0; k < BLOCK; k++) {
-        const int64_t j = i + (k < count ? k : count - 1);
-        bx[k] = x[j];
-        bq[k] = q[j];
-        bw[k] = 0.0;
-        bdx[k] = dx[j];
-        bdp[k] = dp[j];
-        bl[k] = lsum[j];
-    }
-    advance_block(m, step0, steps, bx, bq, bw, bdx, bdp, bl);
-    for (int k = 0; k < count; k++) {
-        x[i + k] = bx[k];
-        q[i + k] = bq[k];
-        winding[i + k] = winding[i + k] + (int64_t)bw[k]; /* whole units, exact below 2^53 */
-        dx[i + k] = bdx[k];
-        dp[i + k] = bdp[k];
-        lsum[i + k] = bl[k];
-    }
-}
-
-void advance_map(int64_t n, int64_t step0, int64_t steps, double K, double b1, double right, double l1, double l2,
-                 double c, double *x, double *q, int64_t *winding, double *dx, double *dp, double *lsum, int threads)
-{
-    const map_t m = {
-        _mm512_set1_pd(K), _mm512_set1_pd(b1), _mm512_set1_pd(right), _mm512_set1_pd(l1), _mm512_set1_pd(l2),
-        _mm512_set1_pd(c), _mm512_set1_pd(K * l1), _mm512_set1_pd(-K), _mm512_set1_pd(K * l2),
-    };
-#pragma omp parallel for schedule(dynamic, 16) num_threads(threads)
-    for (int64_t i = 0; i < n; i += BLOCK) {
-        const int64_t count = n - i < BLOCK ? n - i : BLOCK;
-        advance_points(&m, step0, steps, i, count, x, q, winding, dx, dp, lsum);
-    }
-}

@@ -7,9 +7,12 @@ is a multiple of ``RENORM_CHECK_EVERY``) and stores them back, built twice, on t
 on the portable one. A variant adds per-step work on top through two hooks, inlined into the
 loop: ``after_step`` (every step; sees the state and the step's facts ``gain`` and
 ``in_strip``) and ``after_check`` (after each renormalisation check, with the check number
-``j = global_step / RENORM_CHECK_EVERY``). The plain variant's hooks are empty, so a plain run
-pays nothing for the variants it does not use. A variant keeps per-lane accumulators in its own
-struct and per-point arrays in another (a kernel argument), loaded and stored with the state.
+``j = global_step / RENORM_CHECK_EVERY``). A variant without per-step work (``after_step`` None:
+the plain variant, the indicators) runs, on the CPU body, the steps between two checks in one
+call of the body's ``steps`` (the lanes stay in registers and the map's constants are computed
+once per call), so a plain run pays nothing for the variants it does not use. A variant keeps
+per-lane accumulators in its own struct and per-point arrays in another (a kernel argument),
+loaded and stored with the state.
 
 Checks sit at *global* step numbers (``step0`` is 64-bit), so a run split into any chunks, or
 resumed, renormalises at the same steps and stays bitwise equal. One launch advances at most
@@ -29,7 +32,7 @@ from typing import Any
 
 import warp as wp
 
-from .runtime import CPU_MODULE, CPU_MODULE_OPTIONS, MODULE_OPTIONS, PORTABLE_MODULE
+from .runtime import CPU_MODULE, CPU_MODULE_OPTIONS, MODULE_OPTIONS, PORTABLE_MODULE, check_cpu_isa_runs
 from .step import CPU, INTERLEAVE, PORTABLE, RENORM_CHECK_EVERY, Body, Coefficients, State, force_bodies
 
 __all__ = ["MAX_LAUNCH_STEPS", "Variant", "AdvanceKernel", "advance_kernel", "launch_dim"]
@@ -52,7 +55,7 @@ class Variant:
 
         load(arrays, first, spacing, n) -> accumulators      # lane k is point first + k*spacing
         store(arrays, accumulators, first, spacing, n)
-        after_step(ref accumulators, ref Lanes, global_step: int64)
+        after_step(ref accumulators, ref Lanes, global_step: int64)   # or None: no per-step work
         after_check(ref accumulators, ref Lanes, check: int64)
 
     ``cpu_after_step``, ``cpu_after_check``, ``cpu_load``, ``cpu_store``: optional replacements
@@ -75,6 +78,11 @@ class Variant:
     cpu_load: Any = None
 
 
+@wp.func
+def _no_step_work(acc: Any, s: Any, global_step: wp.int64):
+    pass
+
+
 def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kernel:
     check_mask = wp.int64(RENORM_CHECK_EVERY - 1)
     check_shift = wp.int64(RENORM_CHECK_EVERY.bit_length() - 1)
@@ -86,6 +94,11 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
         load = variant.cpu_load or load
         store = variant.cpu_store or store
 
+    # Without per-step work the CPU body runs the steps between two checks in one call; the
+    # portable body keeps one step per iteration (what CUDA runs).
+    runs = after_step is None and body.name == CPU.name
+    after_step = after_step or _no_step_work
+
     def advance(state: State, extra: variant.arrays, step0: wp.int64, steps: int, p: Coefficients):
         tid = wp.tid()
         n = state.x.shape[0]
@@ -93,13 +106,27 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
         s = wp.static(body.load)(state, first, spacing, n)
         acc = wp.static(load)(extra, first, spacing, n)
         global_step = step0
-        for _s in range(steps):
-            wp.static(body.step)(s, p)
-            global_step = global_step + wp.int64(1)
-            wp.static(after_step)(acc, s, global_step)
-            if (global_step & wp.static(check_mask)) == wp.int64(0):
-                wp.static(body.renorm)(s)
-                wp.static(after_check)(acc, s, global_step >> wp.static(check_shift))
+        if wp.static(runs):
+            remaining = steps
+            while remaining > 0:
+                # The run of steps up to the next check (or the launch's end), in one call.
+                run = wp.min(
+                    wp.static(RENORM_CHECK_EVERY) - int(global_step & wp.static(check_mask)), remaining
+                )
+                wp.static(body.steps)(s, p, wp.int32(run))
+                global_step = global_step + wp.int64(run)
+                remaining = remaining - run
+                if (global_step & wp.static(check_mask)) == wp.int64(0):
+                    wp.static(body.renorm)(s)
+                    wp.static(after_check)(acc, s, global_step >> wp.static(check_shift))
+        else:
+            for _s in range(steps):
+                wp.static(body.step)(s, p)
+                global_step = global_step + wp.int64(1)
+                wp.static(after_step)(acc, s, global_step)
+                if (global_step & wp.static(check_mask)) == wp.int64(0):
+                    wp.static(body.renorm)(s)
+                    wp.static(after_check)(acc, s, global_step >> wp.static(check_shift))
         wp.static(body.store)(state, s, first, spacing, n)
         wp.static(store)(extra, acc, first, spacing, n)
 
@@ -222,6 +249,8 @@ class AdvanceKernel:
         else:
             arguments = [_fill(State(), state), _fill(self.variant.arrays(), extra), step0, steps]
             dim = launch_dim(state[0].shape[0])
+        if body == "cpu":
+            check_cpu_isa_runs()
         wp.launch(
             self.kernel(device, body, params.table),
             dim=dim,

@@ -18,10 +18,9 @@ accumulators must start at zero at global step 0. ``reference.advance_indicators
 twin, bit for bit.
 
 ``fdlog`` is the project's own logarithm (:mod:`.logarithm`), the same bits on the CPU body's
-lane vectors, the portable body (CUDA) and in NumPy; the CPU body runs at ~0.85-0.9 of
-``advance_map``'s throughput with it, where the C library's ``log``, lane by lane, gave 0.64-0.69
-(see the package docstring for the measurements, where the rest goes, and how the values moved
-when it replaced that ``log``).
+lane vectors, the portable body (CUDA) and in NumPy, and cheaper than the C library's ``log``
+lane by lane (the measurements, where the rest of the kernel's time goes, and how the values
+moved when it replaced that ``log`` are in ``benchmarks/README.md``).
 """
 
 import warp as wp
@@ -130,7 +129,7 @@ INDICATORS = Variant(
     _Accumulators,
     _load,
     _store,
-    after_step=_nothing,
+    after_step=None,
     after_check=_after_check,
     cpu_after_check=_after_check_cpu,
 )

@@ -139,7 +139,7 @@ _JOIN = ", ".join(str(i) for i in range(16))
 #: selects: ~34 vector operations per 8 lanes instead of ~50. ``chunk`` is the general form (bit
 #: fields, every special value), used for every chunk of a call with a zero, infinite, negative or
 #: NaN lane, and on CPUs without AVX-512; both give the same bits (``tests/test_logarithm.py``
-#: checks each path). The measurements are in the package docstring.
+#: checks each path). The measurements are in ``benchmarks/README.md``.
 FDLOG_VECTOR = f"""
 struct fdlog {{
 #ifdef __AVX512F__

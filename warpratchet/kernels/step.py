@@ -42,6 +42,7 @@ from typing import Any, NamedTuple
 import warp as wp
 
 from ..force import Force, cpp_source, warp_source
+from .runtime import CPU_ISA
 
 __all__ = [
     "INTERLEAVE",
@@ -69,17 +70,10 @@ RENORM_THRESHOLD = 1.0e100
 RENORM_CHECK_EVERY = 8
 
 
-def _has_avx512() -> bool:
-    try:
-        with open("/proc/cpuinfo") as cpuinfo:
-            return any(line.startswith("flags") and " avx512f" in line for line in cpuinfo)
-    except OSError:  # not Linux
-        return False
-
-
-#: Points advanced per Warp thread: 32 where the CPU has AVX-512 (four 8-wide vectors per field
-#: in 32 vector registers), 16 elsewhere (AVX2: 16 registers of 4). See the package docstring.
-INTERLEAVE = 32 if _has_avx512() else 16
+#: Points advanced per Warp thread: 32 on the AVX-512 path (four 8-wide vectors per field in 32
+#: vector registers), 16 on the AVX2 path (16 registers of 4); :data:`.runtime.CPU_ISA` chooses.
+#: A power of two: clang pads a vector of any other length, which the lane structs do not.
+INTERLEAVE = 32 if CPU_ISA == "avx512" else 16
 
 #: One float64 per lane.
 LaneVector = wp.types.vector(length=INTERLEAVE, dtype=wp.float64)
@@ -207,8 +201,9 @@ def _force_funcs(force: Force, tag: str) -> tuple[wp.Function, wp.Function]:
     return _generated_func(source, name), _generated_func(source, f"{name}_strip")
 
 
-def _portable_step(force: Force, tag: str) -> tuple[wp.Function, wp.Function]:
-    """The portable step of ``force``: ``_step_point`` over the lanes, and ``_step_point``."""
+def _portable_step(force: Force, tag: str) -> tuple[wp.Function, wp.Function, wp.Function]:
+    """The portable ``step`` of ``force`` (``_step_point`` over the lanes), ``steps`` (``count``
+    of them) and ``_step_point`` itself."""
     force_at, strip_at = _force_funcs(force, tag)
 
     def step_point(
@@ -251,7 +246,14 @@ def _portable_step(force: Force, tag: str) -> tuple[wp.Function, wp.Function]:
             s.in_strip[k] = in_strip
 
     step_portable.__qualname__ = f"_step_portable_{tag}"
-    return wp.func(step_portable), step_point
+    step_portable = wp.func(step_portable)
+
+    def steps_portable(s: wp.ref[Lanes], p: Coefficients, count: wp.int32):
+        for _i in range(count):
+            wp.static(step_portable)(s, p)
+
+    steps_portable.__qualname__ = f"_steps_portable_{tag}"
+    return step_portable, wp.func(steps_portable), step_point
 
 
 @wp.func
@@ -283,9 +285,7 @@ VECTOR_TYPES = f"""
 typedef double v_t __attribute__((ext_vector_type({INTERLEAVE})));
 """
 
-_STEP_CPU_TEMPLATE = (
-    VECTOR_TYPES
-    + """
+_LOAD_STATE_CPU = """
 v_t x, q, w, dx, dp;
 __builtin_memcpy(&x, &s.x, sizeof(v_t));
 __builtin_memcpy(&q, &s.q, sizeof(v_t));
@@ -293,6 +293,13 @@ __builtin_memcpy(&w, &s.w, sizeof(v_t));
 __builtin_memcpy(&dx, &s.dx, sizeof(v_t));
 __builtin_memcpy(&dp, &s.dp, sizeof(v_t));
 const v_t one = 1.0, zero = 0.0;
+"""
+
+#: One step on the local lane vectors ``x, q, w, dx, dp``; leaves the step's facts in the locals
+#: ``gain`` and ``in_strip`` (dropped by the compiler where nothing reads them). ``@FORCE@`` (which
+#: defines ``kick`` and ``k_slope``) and ``@STRIP@`` (``in_strip``) are the force's generated C++
+#: (:func:`warpratchet.force.cpp_source`).
+_STEP_ARITHMETIC_CPU_TEMPLATE = """
 @FORCE@const v_t t = q + kick;
 const v_t fl = __builtin_elementwise_floor(t);
 q = t - fl;
@@ -302,21 +309,53 @@ const v_t lift = wrap ? one : zero;
 const v_t w_fl = w + fl;
 w = w_fl + lift;
 x = x + q;
-const v_t x_wrapped = x - one;
-x = x >= one ? x_wrapped : x;
+/* x - (x >= 1 ? 1 : 0): x - 0.0 is x (x >= 0), so these are the bits of the choice, with a mask
+   and a subtraction where the choice needs a blend (a three-micro-op one on some Intel cores). */
+const v_t unit = x >= one ? one : zero;
+x = x - unit;
 const v_t k_slope_dx = k_slope * dx;
 dp = dp + k_slope_dx;
 dx = dx + dp;
 const v_t gain = fl + lift;
-@STRIP@__builtin_memcpy(&s.x, &x, sizeof(v_t));
+@STRIP@"""
+
+_STORE_STATE_CPU = """
+__builtin_memcpy(&s.x, &x, sizeof(v_t));
 __builtin_memcpy(&s.q, &q, sizeof(v_t));
 __builtin_memcpy(&s.w, &w, sizeof(v_t));
 __builtin_memcpy(&s.dx, &dx, sizeof(v_t));
 __builtin_memcpy(&s.dp, &dp, sizeof(v_t));
+"""
+
+
+def _step_cpu_sources(force: Force) -> tuple[str, str]:
+    """C++ of the CPU ``step`` (one iteration, facts kept) and ``steps`` (``count`` iterations
+    with the lanes in local vectors throughout: the loop holds no stores, so the map's constants
+    are computed once, outside it, and nothing but register pressure sends a lane vector to
+    memory; the facts are not kept) of ``force``."""
+    force_code, strip_code = cpp_source(force)
+    arithmetic = _STEP_ARITHMETIC_CPU_TEMPLATE.replace("@FORCE@", force_code).replace("@STRIP@", strip_code)
+    step = (
+        VECTOR_TYPES
+        + _LOAD_STATE_CPU
+        + "{"
+        + arithmetic
+        + """
 __builtin_memcpy(&s.gain, &gain, sizeof(v_t));
 __builtin_memcpy(&s.in_strip, &in_strip, sizeof(v_t));
-"""
-)
+}"""
+        + _STORE_STATE_CPU
+    )
+    steps = (
+        VECTOR_TYPES
+        + _LOAD_STATE_CPU
+        + "for (int i = 0; i < count; i++) {"
+        + arithmetic
+        + "}"
+        + _STORE_STATE_CPU
+    )
+    return step, steps
+
 
 #: C++ for the CPU snippets: ``log_lanes::run(in, use, out)`` sets ``out[k] = log(in[k])`` for the
 #: lanes with ``use[k]`` set (all lanes if ``use`` is null) with the libm ``log`` that ``wp.log``
@@ -371,16 +410,17 @@ if (__builtin_reduce_or(big) != 0) {{
 )
 
 
-def _cpu_step(force: Force, tag: str) -> wp.Function:
-    """The CPU step of ``force``: the template with the force's generated C++
-    (:func:`warpratchet.force.cpp_source`)."""
-    force_code, strip_code = cpp_source(force)
-    snippet = _STEP_CPU_TEMPLATE.replace("@FORCE@", force_code).replace("@STRIP@", strip_code)
+def _cpu_steps(force: Force, tag: str) -> tuple[wp.Function, wp.Function]:
+    """The CPU ``step`` and ``steps`` of ``force`` (:func:`_step_cpu_sources`)."""
+    step_source, steps_source = _step_cpu_sources(force)
 
     def step_cpu(s: wp.ref[Lanes], p: Coefficients): ...
 
+    def steps_cpu(s: wp.ref[Lanes], p: Coefficients, count: wp.int32): ...
+
     step_cpu.__qualname__ = f"_step_cpu_{tag}"
-    return wp.func_native(snippet)(step_cpu)
+    steps_cpu.__qualname__ = f"_steps_cpu_{tag}"
+    return wp.func_native(step_source)(step_cpu), wp.func_native(steps_source)(steps_cpu)
 
 
 @wp.func_native(_RENORM_CPU)
@@ -396,6 +436,7 @@ class Body(NamedTuple):
     store: wp.Function  # (State, Lanes, first, spacing, n)
     step: wp.Function  # (ref Lanes, Coefficients): one iteration, facts included
     renorm: wp.Function  # (ref Lanes): the renormalisation check
+    steps: wp.Function  # (ref Lanes, Coefficients, count: int32): count iterations, facts not kept
     #: One point's step and check (x, q, w, dx, dp, Coefficients) -> (x, q, w, dx, dp, gain,
     #: in_strip) and (dx, dp, log_stretch) -> (dx, dp, log_stretch); the portable body only.
     point_step: wp.Function | None = None
@@ -403,8 +444,13 @@ class Body(NamedTuple):
 
 
 def _portable_body(force: Force, tag: str) -> Body:
-    step, point = _portable_step(force, tag)
-    return Body("portable", _strided, _load, _store, step, _renorm_portable, point, _renorm_point)
+    step, steps, point = _portable_step(force, tag)
+    return Body("portable", _strided, _load, _store, step, _renorm_portable, steps, point, _renorm_point)
+
+
+def _cpu_body(force: Force, tag: str) -> Body:
+    step, steps = _cpu_steps(force, tag)
+    return Body("cpu", _blocks, _load, _store, step, _renorm_cpu, steps)
 
 
 def force_bodies(force: Force) -> tuple[Body, Body]:
@@ -415,10 +461,7 @@ def force_bodies(force: Force) -> tuple[Body, Body]:
     """
     tag = "paper" if force.family == "paper" else force.key
     if tag not in _BODIES:
-        _BODIES[tag] = (
-            Body("cpu", _blocks, _load, _store, _cpu_step(force, tag), _renorm_cpu),
-            _portable_body(force, tag),
-        )
+        _BODIES[tag] = (_cpu_body(force, tag), _portable_body(force, tag))
     return _BODIES[tag]
 
 

@@ -1,0 +1,129 @@
+"""What a user's run costs beyond its kernel: ``warpratchet run`` against the kernel alone.
+
+For each thread count, alternately (the order flips every round):
+
+* **run**: ``warpratchet run --K 3 --b1 0.1 --b2 0.01 --points N --steps S --threads T --json
+  --quiet``, in this process (Warp started and the kernel compiled beforehand): sampling, the
+  run with its History (log-spaced rows, block gains), the progress observer, the convergence
+  verdict and the report;
+* **kernel**: the same sampling and one ``Ensemble.run(S, chunk_steps=S)`` with no observer
+  (one launch per thread).
+
+Both are timed from sampling to the end (wall and process CPU seconds). The ratio kernel / run of
+each round is the run's throughput as a fraction of the kernel's (issue 27 asks for >= 0.9); the
+medians over rounds are printed with their ranges, per wall and per CPU second. The run's reported
+A and Lyapunov exponent must equal the kernel-only ensemble's summary bit for bit (exit status 1
+if not).
+
+Usage::
+
+    python benchmarks/end_to_end.py                      # 10^6 points x 6000 steps, 3 rounds, 1 and 2 threads
+    python benchmarks/end_to_end.py --rounds 5 --json
+    python benchmarks/end_to_end.py --quick --json       # smoke test: 20 000 points x 600 steps
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import statistics
+import sys
+
+from throughput_contenders import Clock, Timing
+
+from warpratchet import Ensemble, MapParams
+from warpratchet.cli import main as cli_main
+from warpratchet.cli import positive_int
+from warpratchet.ensemble import default_threads
+
+PARAMS = MapParams(K=3.0, b1=0.1, b2=0.01)
+INIT, SEED = "strip", 0  # the CLI's defaults
+
+
+def run_cli(params: MapParams, points: int, steps: int, threads: int) -> tuple[dict, Timing]:
+    """``warpratchet run ... --json --quiet`` in this process: its report and its wall and CPU seconds."""
+    argv = ["run", "--K", repr(params.K), "--b1", repr(params.b1), "--b2", repr(params.b2)]
+    argv += ["--points", str(points), "--steps", str(steps), "--threads", str(threads), "--json", "--quiet"]
+    out = io.StringIO()
+    with Clock() as clock, contextlib.redirect_stdout(out):
+        status = cli_main(argv)
+    if status not in (0, None):
+        raise SystemExit(f"warpratchet run exited with {status}")
+    return json.loads(out.getvalue()), clock.timing
+
+
+def _kernel(points: int, steps: int, threads: int) -> tuple[Ensemble, Timing]:
+    with Clock() as clock:
+        ens = Ensemble.sample(PARAMS, points, init=INIT, seed=SEED, threads=threads)
+        ens.run(steps, chunk_steps=steps)
+    return ens, clock.timing
+
+
+def _spread(d: dict[str, float]) -> str:
+    return f"{d['median']:.3f} [{d['min']:.2f}, {d['max']:.2f}]"
+
+
+def _median_range(values: list[float]) -> dict[str, float]:
+    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="end_to_end.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--points", type=positive_int, default=None, help="ensemble size (default 10^6)")
+    parser.add_argument("--steps", type=positive_int, default=None, help="iterations (default 6000)")
+    parser.add_argument("--rounds", type=positive_int, default=3, help="alternating rounds (default 3)")
+    parser.add_argument("--quick", action="store_true", help="20 000 points x 600 steps, 1 round")
+    parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    args = parser.parse_args(argv)
+    points = args.points or (20_000 if args.quick else 1_000_000)
+    steps = args.steps or (600 if args.quick else 6000)
+    rounds = 1 if args.quick else args.rounds
+    Ensemble.sample(PARAMS, 64, threads=1).run(16)  # compile (or load) the kernel outside the timings
+    results, equal = [], True
+    for threads in sorted({1, default_threads()}):
+        wall, cpu = [], []
+        for r in range(rounds):
+            order = ("run", "kernel") if r % 2 == 0 else ("kernel", "run")
+            timing = {}
+            for what in order:
+                print(f"{threads} thread(s), round {r + 1}: {what}", file=sys.stderr, flush=True)
+                if what == "run":
+                    report, timing[what] = run_cli(PARAMS, points, steps, threads)
+                else:
+                    ens, timing[what] = _kernel(points, steps, threads)
+            summary = ens.summary(warn=False)
+            equal &= report["A"] == summary.A and report["lyapunov"] == summary.lyapunov
+            wall.append(timing["kernel"].seconds / timing["run"].seconds)
+            cpu.append(timing["kernel"].cpu_seconds / timing["run"].cpu_seconds)
+            del ens
+        results.append(
+            {
+                "threads": threads,
+                "run_over_kernel_wall": _median_range(wall),
+                "run_over_kernel_cpu": _median_range(cpu),
+                "kernel_point_steps_per_second": points * steps / timing["kernel"].seconds,
+                "run_point_steps_per_second": points * steps / timing["run"].seconds,
+                "kernel_cpu_use": timing["kernel"].cpu_seconds / (timing["kernel"].seconds * threads),
+                "run_cpu_use": timing["run"].cpu_seconds / (timing["run"].seconds * threads),
+            }
+        )
+    report = {"points": points, "steps": steps, "rounds": rounds, "results": results, "bitwise_equal": equal}
+    if args.json:
+        print(json.dumps(report))
+    else:
+        print(f"warpratchet run / kernel alone, {points:,} points x {steps:,} steps, {rounds} rounds")
+        head = f"{'threads':>7}  {'wall: median [range]':<24}{'CPU: median [range]':<24}"
+        print(head + f"{'CPU use (kernel, run)':>22}")
+        for row in results:
+            spreads = [_spread(row[key]) for key in ("run_over_kernel_wall", "run_over_kernel_cpu")]
+            uses = f"{row['kernel_cpu_use']:>10.2f}{row['run_cpu_use']:>8.2f}"
+            print(f"{row['threads']:>7}  " + "".join(f"{s:<24}" for s in spreads) + uses)
+        same = "yes" if equal else "NO"
+        print(f"reported A and Lyapunov exponent equal to the kernel-only ensemble's: {same}")
+    return 0 if equal else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
