@@ -79,7 +79,7 @@ from throughput_contenders import (
 from warpratchet import Ensemble, MapParams
 from warpratchet.cli import positive_int
 from warpratchet.ensemble import RENORM_CHECK_EVERY, RENORM_THRESHOLD, STATE_FIELDS, default_threads
-from warpratchet.kernels.runtime import CPU_ISA
+from warpratchet.kernels import CPU_ISA
 
 #: The benchmark problem: the README's example (domain "LR" of Eq. (Aa)), strip ensemble (seed
 #: and sampler: ``throughput_contenders.INIT, SEED``).

@@ -24,7 +24,7 @@ import numpy as np
 from warpratchet import Ensemble, MapParams, reference
 from warpratchet.ensemble import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from warpratchet.force import Force, python_source
-from warpratchet.kernels.runtime import CPU_ISA
+from warpratchet.kernels import CPU_ISA
 from warpratchet.sumrule import IndicatorEnsemble
 
 #: The benchmark's ensemble: strip B of Eq. (B), seed 1.

@@ -29,7 +29,7 @@ reaches against the hand-vectorised C of its instruction set, are in ``benchmark
 from .advance import MAX_LAUNCH_STEPS, AdvanceKernel, Variant, advance_kernel, launch_dim
 from .indicators import advance_map_indicators
 from .map import advance_map
-from .runtime import init_warp
+from .runtime import CPU_ISA, init_warp
 from .step import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD, Lanes
 
 __all__ = [
@@ -38,6 +38,7 @@ __all__ = [
     "RENORM_THRESHOLD",
     "RENORM_CHECK_EVERY",
     "INTERLEAVE",
+    "CPU_ISA",
     "MAX_LAUNCH_STEPS",
     "AdvanceKernel",
     "Variant",
