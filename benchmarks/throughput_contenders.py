@@ -23,7 +23,7 @@ import numpy as np
 
 from warpratchet import Ensemble, MapParams, reference
 from warpratchet.ensemble import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
-from warpratchet.force import Force, python_source
+from warpratchet.force import Force, c_source, python_source
 from warpratchet.kernels import CPU_ISA
 from warpratchet.sumrule import IndicatorEnsemble
 
@@ -173,18 +173,26 @@ def numba_contenders(params: MapParams, threads: list[int]) -> tuple[list[Conten
 
 
 # -- C: plain and hand-vectorised ------------------------------------------------------------------
-def _build_c(source: Path, library: Path, defines: tuple[str, ...] = ()) -> tuple[ctypes.CDLL | None, str]:
-    """Compile ``source`` into ``library``; ``(library, gcc version)`` or ``(None, reason)``."""
+def _build_c(
+    source: Path, library: Path, params: MapParams, isa: str, defines: tuple[str, ...] = ()
+) -> tuple[ctypes.CDLL | None, str]:
+    """Compile ``source`` into ``library`` with the force of ``params`` for ``isa`` (``force.h``,
+    :func:`warpratchet.force.c_source`, written next to ``library``); ``(library, gcc version)``
+    or ``(None, reason)``."""
     gcc = shutil.which("gcc")
     if gcc is None:
         return None, "unavailable: gcc not found on PATH"
+    include = library.parent / f"force_{isa}"
+    include.mkdir(exist_ok=True)
+    (include / "force.h").write_text(c_source(params.table, isa, MAP_FIELDS))
     gcc_version = subprocess.run([gcc, "-dumpfullversion"], capture_output=True, text=True).stdout.strip()
     defines = (
         *defines,
         f"-DRENORM_THRESHOLD={RENORM_THRESHOLD!r}",
         f"-DRENORM_CHECK_EVERY={RENORM_CHECK_EVERY}",
     )
-    command = [gcc, *C_FLAGS, "-fPIC", "-shared", *defines, "-o", str(library), str(source), "-lm"]
+    command = [gcc, *C_FLAGS, "-fPIC", "-shared", f"-I{include}", *defines]
+    command += ["-o", str(library), str(source), "-lm"]
     done = subprocess.run(command, capture_output=True, text=True)
     if done.returncode != 0:
         first = (done.stderr.strip().splitlines() or ["(no output)"])[0]
@@ -216,7 +224,7 @@ def _c_advance(libs: list[ctypes.CDLL], params: MapParams, n_threads: int) -> Ad
 
 
 def c_contenders(params: MapParams, threads: list[int], workdir: Path) -> tuple[list[Contender], str]:
-    lib, build = _build_c(C_SOURCE, workdir / "ratchet_map.so")
+    lib, build = _build_c(C_SOURCE, workdir / "ratchet_map.so", params, "c")
     if lib is None:
         return [Contender("c", "C OpenMP", t, None, build) for t in threads], build
     build = f"{build}: {' '.join(C_FLAGS)}, OpenMP over points, called via ctypes"
@@ -243,7 +251,7 @@ def c_simd_contenders(
         return [Contender(key, label, t, None, reason) for t in threads], reason
     libs = []
     for nv in vectors:
-        lib, build = _build_c(source, workdir / f"{source.stem}_nv{nv}.so", (f"-DNV={nv}",))
+        lib, build = _build_c(source, workdir / f"{source.stem}_nv{nv}.so", params, isa, (f"-DNV={nv}",))
         if lib is None:
             return [Contender(key, label, t, None, build) for t in threads], build
         libs.append(lib)

@@ -387,3 +387,86 @@ def test_run_says_why_another_force_has_no_closed_form(capsys):
     assert main([*argv, "--points", "64", "--steps", "64", "--quiet"]) == 0
     out = capsys.readouterr().out
     assert "theory      : none for this force" in out and "K != 3" not in out
+
+
+_C_KICKS = """
+#include "force.h"
+#define LANES {lanes}
+void kicks(int64_t n, const double *x, double K, const double *coefficients, double *kick, double *k_slope)
+{{
+    const force_t m = force_set(K{arguments});
+    for (int64_t i = 0; i < n; i += LANES) {{
+        {load}
+        force_kick(xv, &m, &kv, &sv);
+        {store}
+    }}
+}}
+"""
+_C_LANES = {
+    "c": (1, "double xv = x[i], kv, sv;", "kick[i] = kv; k_slope[i] = sv;", ()),
+    "avx2": (
+        4,
+        "__m256d xv = _mm256_loadu_pd(x + i), kv, sv;",
+        "_mm256_storeu_pd(kick + i, kv); _mm256_storeu_pd(k_slope + i, sv);",
+        ("-mavx2",),
+    ),
+    "avx512": (
+        8,
+        "__m512d xv = _mm512_loadu_pd(x + i), kv, sv;",
+        "_mm512_storeu_pd(kick + i, kv); _mm512_storeu_pd(k_slope + i, sv);",
+        ("-mavx512f",),
+    ),
+}
+
+
+def _cpu_has(flag: str) -> bool:
+    with open("/proc/cpuinfo") as cpuinfo:
+        return any(line.startswith("flags") and f" {flag}" in line for line in cpuinfo)
+
+
+@pytest.mark.parametrize("isa", sorted(_C_LANES))
+@pytest.mark.parametrize(
+    "table", [Force.paper(0.1, 0.01), *FORCES], ids=lambda t: f"{t.family}{t.n_pieces}pieces"
+)
+def test_the_c_of_a_force_gives_the_numpy_twins_kicks_bit_for_bit(tmp_path, table, isa):
+    """The benchmarks' C (:func:`warpratchet.force.c_source`), compiled with gcc as they are
+    (``-ffp-contract=off``), against ``K f`` and ``K f'`` of the NumPy body on every knot and
+    4000 random points; where the CPU lacks the instruction set it is compiled only."""
+    import ctypes
+    import shutil
+    import subprocess
+
+    from warpratchet.force import c_source
+
+    gcc = shutil.which("gcc")
+    if gcc is None:
+        pytest.skip("gcc is not on PATH")
+    lanes, load, store, flags = _C_LANES[isa]
+    fields = table.fields()
+    arguments = "".join(f", coefficients[{i}]" for i in range(len(fields)))
+    (tmp_path / "force.h").write_text(c_source(table, isa))
+    (tmp_path / "kicks.c").write_text(
+        _C_KICKS.format(lanes=lanes, arguments=arguments, load=load, store=store)
+    )
+    library = tmp_path / "kicks.so"
+    command = [gcc, "-O2", "-ffp-contract=off", *flags, "-fPIC", "-shared", f"-I{tmp_path}"]
+    done = subprocess.run(
+        [*command, "-o", str(library), str(tmp_path / "kicks.c")], capture_output=True, text=True
+    )
+    assert done.returncode == 0, done.stderr
+    if isa != "c" and not _cpu_has(flags[0][2:]):
+        return
+    rng = np.random.default_rng(7)
+    x = np.concatenate(
+        [[float(k) for k in table.knots], [np.nextafter(float(k), 0) for k in table.knots[1:]]]
+    )
+    x = np.concatenate([x, rng.random(4000 - x.size)])
+    K = 2.75
+    kick, k_slope = np.empty_like(x), np.empty_like(x)
+    f64 = np.ctypeslib.ndpointer(dtype=np.float64, flags="C_CONTIGUOUS")
+    function = ctypes.CDLL(str(library)).kicks
+    function.argtypes = [ctypes.c_int64, f64, ctypes.c_double, f64, f64, f64]
+    function(x.size, x, K, np.array([*fields.values(), 0.0]), kick, k_slope)
+    f, slope = table.evaluate(x)
+    np.testing.assert_array_equal(kick.view(np.int64), (K * f).view(np.int64))
+    np.testing.assert_array_equal(k_slope.view(np.int64), (K * slope).view(np.int64))

@@ -8,7 +8,8 @@ The map (Eq. cpem) kicks with a continuous, zero-mean, periodic, piecewise-linea
 * the float64 *kernel form* of each piece (:attr:`Force.pieces`): ``f = v + a (x - u)``, with the
   operations a trivial coefficient does not need left out, and where ``x`` goes at a knot;
 * the code of every body that evaluates the force: the Warp kernels' (portable Python and CPU
-  C++, :func:`warp_source`, :func:`cpp_source`) and the NumPy twin's (:meth:`Force.evaluate`);
+  C++, :func:`warp_source`, :func:`cpp_source`), the NumPy twin's (:meth:`Force.evaluate`) and
+  the benchmarks' contenders' (Numba and C, :func:`python_source`, :func:`c_source`);
 * the exact kicks of the periodic-orbit arithmetic (:meth:`Force.exact_kicks`) and the bounds
   the kernels rely on: ``max |f|`` and ``max |f'|`` (:attr:`Force.max_value`,
   :attr:`Force.max_slope`).
@@ -39,6 +40,7 @@ __all__ = [
     "Term",
     "paper_coefficients",
     "cpp_source",
+    "c_source",
     "warp_source",
     "python_source",
     "parse_numbers",
@@ -576,4 +578,141 @@ def python_source(force: Force, name: str, arguments: Sequence[str] | None = Non
             lines.append("    else:" if s else "    if True:")
         lines += [f"        {line}" for line in ops[s]]
         lines.append(f"        return f{s}, {_term(piece, 'slope', '', lit)}")
+    return "\n".join(lines) + "\n"
+
+
+#: The C of each instruction set :func:`c_source` writes: lane type, mask type, broadcast,
+#: arithmetic, comparisons and ``blend(mask, if_false, if_true)``.
+_C_ISAS = {
+    "c": {
+        "vec": "double",
+        "mask": "int",
+        "set1": "{0}",
+        "+": "{0} + {1}",
+        "-": "{0} - {1}",
+        "*": "{0} * {1}",
+        "neg": "-{0}",
+        "<=": "{0} <= {1}",
+        "<": "{0} < {1}",
+        "blend": "{0} ? {2} : {1}",
+    },
+    "avx2": {
+        "vec": "__m256d",
+        "mask": "__m256d",
+        "set1": "_mm256_set1_pd({0})",
+        "+": "_mm256_add_pd({0}, {1})",
+        "-": "_mm256_sub_pd({0}, {1})",
+        "*": "_mm256_mul_pd({0}, {1})",
+        "neg": "_mm256_xor_pd({0}, _mm256_set1_pd(-0.0))",
+        "<=": "_mm256_cmp_pd({0}, {1}, _CMP_LE_OQ)",
+        "<": "_mm256_cmp_pd({0}, {1}, _CMP_LT_OQ)",
+        "blend": "_mm256_blendv_pd({1}, {2}, {0})",
+    },
+    "avx512": {
+        "vec": "__m512d",
+        "mask": "__mmask8",
+        "set1": "_mm512_set1_pd({0})",
+        "+": "_mm512_add_pd({0}, {1})",
+        "-": "_mm512_sub_pd({0}, {1})",
+        "*": "_mm512_mul_pd({0}, {1})",
+        # -d flips the sign bit (0 - d would give +0 for d = +0); AVX-512F has no xor_pd
+        "neg": "_mm512_castsi512_pd(_mm512_xor_si512(_mm512_castpd_si512({0}), "
+        "_mm512_set1_epi64(INT64_MIN)))",
+        "<=": "_mm512_cmp_pd_mask({0}, {1}, _CMP_LE_OQ)",
+        "<": "_mm512_cmp_pd_mask({0}, {1}, _CMP_LT_OQ)",
+        "blend": "_mm512_mask_blend_pd({0}, {1}, {2})",
+    },
+}
+
+
+def c_source(force: Force, isa: str = "c", arguments: Sequence[str] | None = None) -> str:
+    """C of the force for the benchmarks' C contenders: a header, for ``isa`` ``"c"`` (scalar),
+    ``"avx2"`` or ``"avx512"`` (intrinsics), with the operations of :func:`cpp_source` in its order.
+
+    ``force_t`` holds ``K``, the run-time coefficients and ``k0 .. k{n-1}`` (``K f'`` on each
+    piece, each ``K a`` rounded once), broadcast to the lanes; ``force_set(K, arguments...)``
+    makes one, where ``arguments`` are the run-time coefficients in the order it takes them
+    (default: that of :meth:`Force.fields`; a name the force does not use goes unused).
+    ``force_kick(x, &m, &kick, &k_slope)`` gives ``kick = K f(x)`` and ``K f'(x)``.
+    """
+    ops = _C_ISAS.get(isa)
+    if ops is None:
+        raise ParameterError(f"isa = {isa!r} is outside the allowed values {', '.join(map(repr, _C_ISAS))}")
+    fields = tuple(force.fields() if arguments is None else arguments)
+    missing = set(force.fields()) - set(fields)
+    if missing:
+        raise ParameterError(
+            f"arguments = {fields!r} lack the force's run-time coefficients {sorted(missing)}"
+        )
+    vec, mask = ops["vec"], ops["mask"]
+
+    def lit(value: float) -> str:
+        return ops["set1"].format("1.0" if value == 1.0 else value.hex())
+
+    def operand(piece: Piece, name: str) -> str:
+        if name == "x" or not name.startswith("term:"):
+            return name
+        return _term(piece, name[5:], "m->", lit).replace("m->.", "m->")
+
+    n = force.n_pieces
+    body = []
+    for s, piece in enumerate(force.pieces[:-1]):
+        edge = operand(piece, "term:end")
+        body.append(f"const {mask} in_{s} = {ops['<=' if piece.closed else '<'].format('x', edge)};")
+    for s, piece in enumerate(force.pieces):
+        for result, left, op, right in _operations(piece, s):
+            if not op:
+                expr = operand(piece, left)
+            elif not left:
+                expr = ops["neg"].format(operand(piece, right))
+            else:
+                expr = ops[op].format(operand(piece, left), operand(piece, right))
+            body.append(f"const {vec} {result} = {expr};")
+
+    def select(values: list[str]) -> str:
+        expr = values[-1]
+        for s in reversed(range(n - 1)):
+            expr = ops["blend"].format(
+                f"in_{s}", expr if s == n - 2 or isa != "c" else f"({expr})", values[s]
+            )
+        return expr
+
+    body.append(f"const {vec} f = {select([f'f{s}' for s in range(n)])};")
+    body.append(f"*k_slope = {select([f'm->k{s}' for s in range(n)])};")
+    body.append(f"*kick = {ops['*'].format('m->K', 'f')};")
+    k_terms = []
+    for piece in force.pieces:
+        a = piece.slope
+        if a.field is None and a.value in (-1.0, 1.0):
+            k_terms.append("-K" if a.value == -1.0 else "K")
+        else:
+            k_terms.append(f"K * {a.field if a.field is not None else a.value.hex()}")
+    members = ", ".join(("K", *force.fields(), *(f"k{s}" for s in range(n))))
+    values = [ops["set1"].format(t) for t in ("K", *force.fields(), *k_terms)]
+    parameters = ", ".join(f"double {name}" for name in ("K", *fields))
+    guard = f"WARPRATCHET_FORCE_{isa.upper()}_H"
+    lines = [
+        f"/* The force f of the map in {isa}, written by warpratchet.force.c_source from the piece table",
+        f"   ({force.describe()}). */",
+        f"#ifndef {guard}",
+        f"#define {guard}",
+        "#include <stdint.h>",
+        *(() if isa == "c" else ("#include <immintrin.h>",)),
+        "",
+        f"typedef struct {{\n    {vec} {members};\n}} force_t;",
+        "",
+        f"static inline force_t force_set({parameters})",
+        "{",
+        *(f"    (void){name};" for name in fields if name not in force.fields()),
+        f"    const force_t m = {{{', '.join(values)}}};",
+        "    return m;",
+        "}",
+        "",
+        f"static inline void force_kick({vec} x, const force_t *m, {vec} *kick, {vec} *k_slope)",
+        "{",
+        *(f"    {line}" for line in body),
+        "}",
+        "",
+        "#endif",
+    ]
     return "\n".join(lines) + "\n"

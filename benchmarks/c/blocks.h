@@ -8,15 +8,10 @@
 #ifndef RATCHET_BLOCKS_H
 #define RATCHET_BLOCKS_H
 
+#include "force.h"
 #include "renorm.h"
 
 #define BLOCK (WIDTH * NV)
-
-/* The map's coefficients (Eqs. fx, mmc), broadcast: K, the kinks b1 and right = 1 - b2, l1, l2, c,
-   and K f' on each piece (K*l1, -K, K*l2: the roundings of the scalar K*slope). */
-typedef struct {
-    vec_t K, b1, right, l1, l2, c, k_left, k_middle, k_right;
-} map_t;
 
 /* |dx| > threshold in the lanes set in big: renormalise those (log lane by lane, the C library's). */
 static void renormalise(int big, vec_t *dx, vec_t *dp, vec_t *lsum)
@@ -58,12 +53,12 @@ static void renormalise(int big, vec_t *dx, vec_t *dp, vec_t *lsum)
         STOREU(lsum + WIDTH * v, L[v]);     \
     }
 
-static void advance_block(const map_t *m, int64_t step0, int64_t steps, double *x, double *q, double *w,
+static void advance_block(const force_t *m, int64_t step0, int64_t steps, double *x, double *q, double *w,
                           double *dx, double *dp, double *lsum);
 
 /* The block of points [i, i + count) (count <= BLOCK), padded with copies of the last one. */
-static void advance_points(const map_t *m, int64_t step0, int64_t steps, int64_t i, int64_t count, double *x,
-                           double *q, int64_t *winding, double *dx, double *dp, double *lsum)
+static void advance_points(const force_t *m, int64_t step0, int64_t steps, int64_t i, int64_t count,
+                           double *x, double *q, int64_t *winding, double *dx, double *dp, double *lsum)
 {
     double bx[BLOCK], bq[BLOCK], bw[BLOCK], bdx[BLOCK], bdp[BLOCK], bl[BLOCK];
     for (int k = 0; k < BLOCK; k++) {
@@ -89,9 +84,7 @@ static void advance_points(const map_t *m, int64_t step0, int64_t steps, int64_t
 void advance_map(int64_t n, int64_t step0, int64_t steps, double K, double b1, double right, double l1, double l2,
                  double c, double *x, double *q, int64_t *winding, double *dx, double *dp, double *lsum, int threads)
 {
-    const map_t m = {
-        SET1(K), SET1(b1), SET1(right), SET1(l1), SET1(l2), SET1(c), SET1(K * l1), SET1(-K), SET1(K * l2),
-    };
+    const force_t m = force_set(K, b1, right, l1, l2, c);
 #pragma omp parallel for schedule(dynamic, 16) num_threads(threads)
     for (int64_t i = 0; i < n; i += BLOCK) {
         const int64_t count = n - i < BLOCK ? n - i : BLOCK;

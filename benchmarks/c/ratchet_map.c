@@ -11,8 +11,11 @@
  *   after every global step that is a multiple of RENORM_CHECK_EVERY, a tangent with
  *   |dx| > RENORM_THRESHOLD is divided by its norm and the log of the norm is booked.
  *
- * Built at run time by throughput.py with
- *   gcc -O3 -march=native -fopenmp -ffp-contract=off -DRENORM_THRESHOLD=... -DRENORM_CHECK_EVERY=...
+ * The force comes from force.h, which throughput.py writes from warpratchet's piece table
+ * (warpratchet.force.c_source, isa "c"): force_kick gives K f and K f', the roundings of the
+ * kernel's. Built at run time by throughput.py with
+ *   gcc -O3 -march=native -fopenmp -ffp-contract=off -I<folder of force.h> -DRENORM_THRESHOLD=... \
+ *       -DRENORM_CHECK_EVERY=...
  * -ffp-contract=off matters: GNU C contracts a*b + c into an FMA by default, which rounds once
  * instead of twice and would make the states differ from Warp's in the last bits.
  *
@@ -21,23 +24,22 @@
 #include <math.h>
 #include <stdint.h>
 
+#include "force.h"
 #include "renorm.h"
 
 void advance_map(int64_t n, int64_t step0, int64_t steps, double K, double b1, double right, double l1,
                  double l2, double c, double *x, double *q, int64_t *winding, double *dx, double *dp,
                  double *lsum, int threads)
 {
+    const force_t m = force_set(K, b1, right, l1, l2, c);
 #pragma omp parallel for schedule(static) num_threads(threads)
     for (int64_t i = 0; i < n; i++) {
         double xi = x[i], qi = q[i], dxi = dx[i], dpi = dp[i], si = lsum[i];
         double w = 0.0; /* windings gained in this call; exact below 2^53 */
         for (int64_t s = 0; s < steps; s++) {
-            const int in_left = xi <= b1;
-            const int in_middle = xi < right;
-            /* Eq. (fx) and its slope f' */
-            const double f = in_left ? l1 * xi : (in_middle ? c - xi : l2 * (xi - 1.0));
-            const double slope = in_left ? l1 : (in_middle ? -1.0 : l2);
-            const double t = qi + K * f;
+            double kick, k_slope; /* K f and K f' (Eq. fx) */
+            force_kick(xi, &m, &kick, &k_slope);
+            const double t = qi + kick;
             const double fl = floor(t);
             qi = t - fl;
             /* t just below an integer can round t - floor(t) up to exactly 1: fold it back */
@@ -46,7 +48,7 @@ void advance_map(int64_t n, int64_t step0, int64_t steps, double K, double b1, d
             w = w + fl + (wrap ? 1.0 : 0.0);
             xi = xi + qi;
             xi = xi >= 1.0 ? xi - 1.0 : xi;
-            dpi = dpi + (K * slope) * dxi;
+            dpi = dpi + k_slope * dxi;
             dxi = dxi + dpi;
             if ((uint64_t)(step0 + s + 1) % RENORM_CHECK_EVERY == 0 && fabs(dxi) > RENORM_THRESHOLD) {
                 const double h = sqrt(dxi * dxi + dpi * dpi);

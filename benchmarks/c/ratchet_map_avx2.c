@@ -4,22 +4,24 @@
  * project's exact arithmetic. The AVX-512 twin is ratchet_map_avx512.c; both do the same
  * operations, in the same order and with the same roundings, as warpratchet.kernels.step:
  *
- *   force f of Eq. (fx) and K*f' by two blends each (the pieces x <= b1, x < 1 - b2, else);
+ *   K f and K f' of Eq. (fx) by force_kick of force.h (pieces x <= b1, x < 1 - b2, else);
  *   t = q + K f;  floor(t) by one vroundpd;  q = t - floor(t), folded to 0 (one more whole unit)
  *   if it rounded up to 1;  x = x + q, minus 1 if >= 1;
  *   tangent dp' = dp + (K f') dx, dx' = dx + dp';
  *   after every global step that is a multiple of RENORM_CHECK_EVERY, a tangent with
  *   |dx| > RENORM_THRESHOLD is divided by its norm and log(norm) (the C library's) is booked.
  *
- * K f' is taken from the three products K*l1, -K, K*l2 (the roundings of the scalar K*slope), as
- * warpratchet's CPU body does. Each OpenMP thread takes blocks of NV independent 4-wide vectors
- * (4*NV points), whose dependency chains hide each other's latencies; NV = 3 and 4 are both built
- * and the faster is reported (AVX2 has 16 vector registers: more vectors spill). Compile with
- * -ffp-contract=off (no FMA contraction: NumPy and warpratchet round a*b + c twice).
+ * force.h is written by throughput.py from warpratchet's piece table (warpratchet.force.c_source,
+ * the operations of the Warp kernels' CPU body in its order): K f' is taken from the products
+ * K*l1, -K, K*l2 (the roundings of the scalar K*slope). Each OpenMP thread takes blocks of NV
+ * independent 4-wide vectors (4*NV points), whose dependency chains hide each other's latencies;
+ * NV = 3 and 4 are both built and the faster is reported (AVX2 has 16 vector registers: more
+ * vectors spill). Compile with -ffp-contract=off (no FMA contraction: NumPy and warpratchet
+ * round a*b + c twice).
  *
  * Built at run time by throughput.py with
- *   gcc -O3 -march=native -fopenmp -ffp-contract=off -DNV=<3|4> -DRENORM_THRESHOLD=... \
- *       -DRENORM_CHECK_EVERY=... -fPIC -shared
+ *   gcc -O3 -march=native -fopenmp -ffp-contract=off -I<folder of force.h> -DNV=<3|4> \
+ *       -DRENORM_THRESHOLD=... -DRENORM_CHECK_EVERY=... -fPIC -shared
  */
 #include <immintrin.h>
 #include <math.h>
@@ -42,7 +44,7 @@ typedef __m256d vec_t;
 #include "blocks.h"
 
 /* Advance the BLOCK points at x..lsum (w: whole units gained, float64) by `steps` iterations. */
-static void advance_block(const map_t *m, int64_t step0, int64_t steps, double *x, double *q, double *w,
+static void advance_block(const force_t *m, int64_t step0, int64_t steps, double *x, double *q, double *w,
                           double *dx, double *dp, double *lsum)
 {
     const __m256d one = _mm256_set1_pd(1.0);
@@ -53,15 +55,9 @@ static void advance_block(const map_t *m, int64_t step0, int64_t steps, double *
     for (int64_t s = 0; s < steps; s++) {
         for (int v = 0; v < NV; v++) {
             const __m256d xv = X[v];
-            const __m256d in_left = _mm256_cmp_pd(xv, m->b1, _CMP_LE_OQ);
-            const __m256d in_middle = _mm256_cmp_pd(xv, m->right, _CMP_LT_OQ);
-            /* Eq. (fx): l1 x | c - x | l2 (x - 1), and K f' */
-            const __m256d f_right = _mm256_mul_pd(m->l2, _mm256_sub_pd(xv, one));
-            __m256d f = _mm256_blendv_pd(f_right, _mm256_sub_pd(m->c, xv), in_middle);
-            f = _mm256_blendv_pd(f, _mm256_mul_pd(m->l1, xv), in_left);
-            __m256d k_slope = _mm256_blendv_pd(m->k_right, m->k_middle, in_middle);
-            k_slope = _mm256_blendv_pd(k_slope, m->k_left, in_left);
-            const __m256d t = _mm256_add_pd(Q[v], _mm256_mul_pd(m->K, f));
+            __m256d kick, k_slope; /* K f and K f' (Eq. fx) */
+            force_kick(xv, m, &kick, &k_slope);
+            const __m256d t = _mm256_add_pd(Q[v], kick);
             const __m256d fl = _mm256_round_pd(t, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC);
             const __m256d frac = _mm256_sub_pd(t, fl);
             /* t just below an integer: t - floor(t) rounds to 1, fold it to 0 and one more unit */
