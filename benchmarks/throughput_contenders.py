@@ -99,16 +99,22 @@ def numpy_contenders(params: MapParams) -> tuple[list[Contender], str]:
 
 
 # -- Numba ------------------------------------------------------------------------------------------
+def _numba_advance(table: Force) -> Callable[..., None]:
+    """The Numba twin of the kernel for the force ``table``, compiled on first use; one for the
+    whole paper's family, whose coefficients it reads at run time."""
+    return _numba_compile(Force.paper(0.5, 0.25) if table.family == "paper" else table)
+
+
 @functools.cache
-def _numba_advance() -> Callable[..., None]:
-    """The Numba twin of the kernel, compiled on first use (closure constants are frozen); the
-    force's branches are generated from the paper's piece table (:func:`warpratchet.force.python_source`)."""
+def _numba_compile(table: Force) -> Callable[..., None]:
+    """The Numba twin of the kernel (closure constants are frozen); the force's branches are
+    generated from ``table`` (:func:`warpratchet.force.python_source`)."""
     import numba
 
     threshold = RENORM_THRESHOLD
     every = RENORM_CHECK_EVERY
     namespace: dict = {}
-    exec(python_source(Force.paper(0.5, 0.25), "force_at", MAP_FIELDS), namespace)  # noqa: S102
+    exec(python_source(table, "force_at", MAP_FIELDS), namespace)  # noqa: S102
     force_at = numba.njit(fastmath=False, error_model="numpy", inline="always")(namespace["force_at"])
 
     # fastmath=False (the default) keeps IEEE semantics: no FMA contraction, no reassociation.
@@ -118,7 +124,7 @@ def _numba_advance() -> Callable[..., None]:
             xi, qi, dxi, dpi, si = x[i], q[i], dx[i], dp[i], lsum[i]
             w = 0.0
             for s in range(steps):
-                f, slope = force_at(xi, b1, right, l1, l2, c)  # Eq. (fx) and its slope
+                f, slope = force_at(xi, b1, right, l1, l2, c)  # the force and its slope
                 t = qi + K * f
                 fl = np.floor(t)  # math.floor would return an integer
                 qi = t - fl
@@ -148,7 +154,7 @@ def numba_contenders(params: MapParams, threads: list[int]) -> tuple[list[Conten
     except ImportError:
         reason = "unavailable: numba is not installed (pip install 'warpratchet[bench]')"
         return [Contender("numba", "Numba parallel", t, None, reason) for t in threads], reason
-    kernel = _numba_advance()
+    kernel = _numba_advance(params.table)
     threads = [min(t, numba.config.NUMBA_NUM_THREADS) for t in threads]
 
     def make(n_threads: int) -> Advance:
@@ -332,8 +338,7 @@ MAP_FIELDS = ("b1", "right", "l1", "l2", "c")
 
 def _map_args(params: MapParams) -> tuple[float, ...]:
     """The contenders' scalar arguments ``K, b1, right = 1 - b2, l1, l2, c`` (Eqs. fx, mmc), read
-    from the force's piece table as the Warp kernels read them (the contenders are written by hand
-    for the three pieces of Eq. fx)."""
-    params.require_paper("the C and Numba contenders")
+    from the force's piece table as the Warp kernels read them. Another force's code holds its
+    coefficients as constants and leaves these five unused (they are 0)."""
     fields = params.table.fields()
-    return (params.K, *(fields[name] for name in MAP_FIELDS))
+    return (params.K, *(fields.get(name, 0.0) for name in MAP_FIELDS))
