@@ -2,9 +2,9 @@
  * Plain-C twin of warpratchet.kernels.advance_map, for benchmarks/throughput.py.
  *
  * Advances n points of the map of Eq. (cpem), p' = p + K f(x), x' = x + p' (mod 1), with the
- * force of Eq. (fx) (coefficients l1, l2, c of Eq. (mmc)), and their tangent vectors under DM,
- * for `steps` iterations starting at global step `step0`. The arithmetic is the kernel's,
- * operation by operation, so that the end state is bitwise equal to warpratchet's:
+ * force of force.h (Eq. fx with l1, l2, c of Eq. mmc, or another piece table), and their tangent
+ * vectors under DM, for `steps` iterations starting at global step `step0`. The arithmetic is
+ * the kernel's, operation by operation, so that the end state is bitwise equal to warpratchet's:
  *
  *   momentum as a fraction q in [0, 1) plus a winding count (floor of q + K f);
  *   tangent dp' = dp + (K f') dx, dx' = dx + dp';
