@@ -15,9 +15,11 @@ from collections.abc import Iterable
 from ..ensemble import STATE_FIELDS, Ensemble, Observer, default_chunk_steps
 from ..errors import ParameterError, check_count, check_optional
 from ..observables import summarize
+from ..spec import CHECKPOINT_SECONDS
 
 __all__ = [
     "CHECKPOINT_CHUNKS",
+    "CHECKPOINT_SECONDS",
     "MIN_ARCHIVE_CHUNK_STEPS",
     "ROW_SHARE",
     "schedule",

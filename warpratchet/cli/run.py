@@ -17,7 +17,7 @@ import time
 from typing import Any
 
 from ..spec import RunSpec
-from .common import Interrupted, ProgressBar, emit_json, print_warnings, spec_flags, spec_from_args
+from .common import ProgressBar, emit_json, print_warnings, spec_flags, spec_from_args, stopping
 from .sinks import add_archive_flags, add_rerun_flags, archive_plan, rerun_sink
 
 #: The RunSpec settings ``run`` takes as flags: all but the classifier (``run`` reports the FTLE's
@@ -201,20 +201,24 @@ def command(args: argparse.Namespace) -> int:
         observers.append(recorder)  # its frames end chunks themselves (Observer.next_stop)
     first = ensemble.step
     start = time.perf_counter()
-    try:
-        ensemble.run(spec.steps - first, observers, chunk_steps=chunk_steps)
-    except KeyboardInterrupt:
-        # Ensemble.run stops between chunks, so the step is exact (and the sinks are closed).
+
+    def stopped() -> str:
+        # Ensemble.run stops between chunks, so the step is exact; an archive wrote its row and
+        # checkpoint there and is closed.
         detail = f"at step {ensemble.step} of {spec.steps}"
         if sink is not None:
             detail += (
                 f"; {args.out} keeps the checkpoint at step {sink.checkpoint_step}: "
                 "run the same command again to continue"
             )
-        raise Interrupted(detail) from None
-    finally:
-        if sink is not None:
-            sink.close()
+        return detail
+
+    with stopping(stopped):
+        try:
+            ensemble.run(spec.steps - first, observers, chunk_steps=chunk_steps)
+        finally:
+            if sink is not None:
+                sink.close()
     seconds = time.perf_counter() - start
     report = run_report(ensemble, seconds, spec.steps - first, spec.threshold, spec.threshold_rule)
     report.update(history_report(history, spec.threshold_rule))

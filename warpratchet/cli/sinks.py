@@ -19,8 +19,8 @@ import os
 import sys
 from typing import Any
 
-from ..spec import RunSpec
-from .common import UsageError, count_type
+from ..spec import CHECKPOINT_SECONDS, RunSpec, check_checkpoint_seconds
+from .common import UsageError, _typed, count_type
 
 
 def _first_given(flags: list[tuple[str, Any]], needs: str) -> None:
@@ -56,6 +56,14 @@ def add_archive_flags(p: argparse.ArgumentParser) -> None:
         p, "--snapshot-points", 1, None, "with --out: points in the snapshot subsample (default 1000)"
     )
     _count_flag(p, "--checkpoint-every", 1, None, f"{with_out} full checkpoints (default 8 chunks)")
+    p.add_argument(
+        "--checkpoint-seconds",
+        type=_typed(float, check_checkpoint_seconds),
+        default=None,
+        metavar="SECONDS",
+        help="with --out: also checkpoint so that at most this much work (wall clock) is unsaved "
+        f"(default {CHECKPOINT_SECONDS:g})",
+    )
 
 
 def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | None:
@@ -69,6 +77,7 @@ def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | No
                 ("--snapshot-every", args.snapshot_every),
                 ("--snapshot-points", args.snapshot_points),
                 ("--checkpoint-every", args.checkpoint_every),
+                ("--checkpoint-seconds", args.checkpoint_seconds is not None),
             ],
             "--out FILE",
         )
@@ -81,6 +90,7 @@ def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | No
         "snapshot_every": args.snapshot_every,
         "snapshot_points": 1000 if args.snapshot_points is None else args.snapshot_points,
         "checkpoint_every": args.checkpoint_every,
+        **({} if args.checkpoint_seconds is None else {"checkpoint_seconds": args.checkpoint_seconds}),
         "chunk_steps": spec.chunk_steps,
         "threshold": spec.threshold,
         "threshold_rule": spec.threshold_rule,
@@ -116,6 +126,7 @@ def _resumable(args: argparse.Namespace, spec: RunSpec) -> int:
     given = {
         "snapshot_points": args.snapshot_points,
         "checkpoint_every": args.checkpoint_every,
+        "checkpoint_seconds": args.checkpoint_seconds,
         "chunk_steps": spec.chunk_steps,
     }
     asked.update({k: v for k, v in given.items() if v is not None})
