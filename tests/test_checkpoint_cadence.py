@@ -144,3 +144,25 @@ def test_resume_to_the_step_an_archive_holds_reports_it_and_exits_0(tmp_path):
         behind.returncode == 2
         and "--steps 300 is behind the archive's checkpoint at step 900" in behind.stderr
     )
+
+
+def test_inspect_reports_progress_at_the_checkpoint_and_at_the_newest_row(tmp_path):
+    """A run killed between checkpoints: its rows reach step 300, a rerun keeps step 0."""
+    path = tmp_path / "r.h5"
+    ens = Ensemble.sample(PARAMS, 200, seed=3)
+    sink = ArchiveSink(path, ens, chunk_steps=100, checkpoint_every=1000)
+    sink.begin(ens, 1000)
+    for _ in range(3):  # the rows of three chunks, and no end (as a kill leaves it)
+        ens.run(100)
+        sink.after_chunk(ens, 0.5)
+    sink.close()
+    with open_archive(path) as arc:
+        info = arc.info()
+    assert (info["checkpoint_step"], info["done"], info["latest_done"]) == (0, 0.0, 0.3)
+    assert info["eta_seconds"] == pytest.approx(700 / (300 / 1.5))  # from the newest row
+    text = cli("inspect", str(path)).stdout
+    assert (
+        "target: step 1000, 0.0% done at the checkpoint (where a rerun continues), 30.0% at the newest row"
+        in text
+    )
+    assert "latest (step 300)" in text

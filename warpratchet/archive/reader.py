@@ -286,7 +286,7 @@ class Archive:
             "snapshots": self.snapshot_count,
             "latest": _last_row(series),
             "history": history_info(self.history),
-            **progress.estimate(series, self.target_step, self.initial_step),
+            **progress.estimate(series, self.target_step, self.initial_step, checkpoint_step),
         }
 
     # -- exports ----------------------------------------------------------------------------------
