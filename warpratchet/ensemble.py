@@ -41,7 +41,7 @@ from .runloop import (
     run_chunks,
 )
 from .sampling import _BUILD_CHUNK, grid_nodes, sample_grid, sample_strip, sample_torus, sampled_chunks
-from .spec import MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS
+from .spec import MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS, check_setting
 from .state import STATE_FIELDS, check_initial, check_state, initial_state
 
 __all__ = [
@@ -199,7 +199,7 @@ class Ensemble:
         Seeded with ``numpy.random.default_rng(seed)``: the same arguments give the same points.
         """
         points = check_count("points", points, 1)
-        seed = check_count("seed", seed, 0)
+        seed = check_setting("seed", seed)  # an int64, as archives and sweep files store it
         check_choice("init", init, SAMPLERS)
         # Built chunk by chunk into the state (the same points as sample_strip, sample_torus and
         # sample_grid): no full-size temporaries, so 10^8 points need little more than their state.

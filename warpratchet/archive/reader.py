@@ -57,6 +57,8 @@ class Archive:
         self.path = os.fspath(path)
         if not os.path.exists(self.path):
             raise ArchiveError(f"{self.path}: no such archive")
+        if not os.path.isfile(self.path):  # a FIFO or device would block HDF5's open forever
+            raise ArchiveError(f"{self.path} is not a regular file (not a warpratchet archive)")
         try:
             self._file = open_h5(self.path, locking=locking)
         except OSError as exc:

@@ -19,6 +19,7 @@ import os
 import sys
 from typing import Any
 
+from ..limits import MAX_STEP
 from ..spec import CHECKPOINT_SECONDS, RunSpec, check_checkpoint_seconds
 from .common import UsageError, _typed, count_type
 
@@ -38,9 +39,10 @@ def _count_flag(
     default: int | None,
     help: str,
     metavar: str | None = None,
+    high: int | None = None,
 ) -> None:
     """A count flag whose errors name it as a setting (``--snapshot-every`` -> ``snapshot_every``)."""
-    kind = count_type(flag[2:].replace("-", "_"), low)
+    kind = count_type(flag[2:].replace("-", "_"), low, high)
     p.add_argument(flag, type=kind, default=default, help=help, metavar=metavar)
 
 
@@ -50,12 +52,19 @@ def add_archive_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="with --out: replace an existing file")
     with_out = "with --out: steps between"
     _count_flag(
-        p, "--snapshot-every", 0, 0, f"{with_out} x, p snapshots of a fixed subsample (default 0: none)"
+        p,
+        "--snapshot-every",
+        0,
+        0,
+        f"{with_out} x, p snapshots of a fixed subsample (default 0: none)",
+        high=MAX_STEP,
     )
     _count_flag(
         p, "--snapshot-points", 1, None, "with --out: points in the snapshot subsample (default 1000)"
     )
-    _count_flag(p, "--checkpoint-every", 1, None, f"{with_out} full checkpoints (default 8 chunks)")
+    _count_flag(
+        p, "--checkpoint-every", 1, None, f"{with_out} full checkpoints (default 8 chunks)", high=MAX_STEP
+    )
     p.add_argument(
         "--checkpoint-seconds",
         type=_typed(float, check_checkpoint_seconds),
@@ -83,6 +92,11 @@ def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | No
         )
         return None
     schedule(spec.points, spec.chunk_steps, args.snapshot_every, args.checkpoint_every)  # ValueError if bad
+    if args.snapshot_points is not None and args.snapshot_points > spec.points:
+        raise UsageError(
+            f"--snapshot-points {args.snapshot_points} is more than the run's {spec.points} points "
+            f"(allowed range 1 <= snapshot_points <= {spec.points})"
+        )
     if os.path.lexists(args.out) and not args.force:
         return {"resume": _resumable(args, spec)}
     return {
