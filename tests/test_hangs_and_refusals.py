@@ -165,3 +165,28 @@ def test_figures_refuse_a_file_as_the_sweeps_folder(tmp_path):
 def test_a_seed_no_archive_can_store_is_refused_when_sampling():
     with pytest.raises(ParameterError, match="seed = 18446744073709551616 is outside the allowed range"):
         Ensemble.sample(PARAMS, 10, seed=2**64)
+
+
+def test_a_refused_write_tells_a_python_user_what_holds(tmp_path, monkeypatch):
+    """Not "run the same command again" (there is no command): where the archive and the
+    ensemble stand, and how to continue from the archive."""
+    import errno
+
+    from warpratchet._storage import StorageError
+    from warpratchet.archive import open_archive, writer
+
+    def full(*args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(writer, "write_slot", full)
+    path = tmp_path / "nb.h5"
+    ens = Ensemble.sample(PARAMS, 200, seed=1)
+    with pytest.raises(StorageError) as caught:
+        ens.run(2000, chunk_steps=1000, archive=path)
+    message = str(caught.value)
+    assert "the archive keeps its checkpoint at step 0: once there is space, continue from it with" in message
+    assert "open_archive(path).ensemble() (this ensemble is at step 2000, ahead of the archive)" in message
+    assert "same command" not in message
+    monkeypatch.undo()
+    with open_archive(path) as arc:
+        assert arc.checkpoint()[1] == 0

@@ -252,6 +252,9 @@ class ArchiveSink(Observer):
         self._lock_fd = None
         self._failed = False
         self._current = int(f["checkpoint"]["current"][0])
+        #: What a refused write's message tells the user to do once there is space (the CLI: "run
+        #: the same command again to resume it"); None: how to continue in Python.
+        self.how_to_continue: str | None = None
         self._checkpoint_clock = self._row_clock = time.monotonic()
 
     #: Reopen an archive for appending from its newest good checkpoint (:func:`.reopen.reopen`).
@@ -262,9 +265,12 @@ class ArchiveSink(Observer):
     def _writing(self) -> Iterator[None]:
         """A write of the running archive: a refused write or a non-finite state ends the sink
         (no end checkpoint), leaving the file as its last successful flush left it."""
+        how = self.how_to_continue or (
+            f"continue from it with open_archive(path).ensemble() (this ensemble is at step "
+            f"{self.ensemble.step}, ahead of the archive)"
+        )
         hint = (
-            f"; the archive keeps its checkpoint at step {self.checkpoint_step}: once there is space, "
-            "run the same command again to resume it"
+            f"; the archive keeps its checkpoint at step {self.checkpoint_step}: once there is space, {how}"
         )
         try:
             with storage_errors(self.path, "write", hint):

@@ -92,6 +92,7 @@ def command(args: argparse.Namespace) -> int:
             return _report_complete(args, caught)
         sink, ensemble = ArchiveSink.resume(args.archive, threads=args.threads, device=args.device)
     print_warnings(caught)
+    sink.how_to_continue = "run the same command again to resume it"
     from ..history import History
 
     # An archive written before histories existed: this session's rows only, not archived.

@@ -226,6 +226,7 @@ def command(args: argparse.Namespace) -> int:
         sink, ensemble, history = _archive(args, spec, plan, history)
         observers.append(history)
         if sink is not None:
+            sink.how_to_continue = "run the same command again to resume it"
             observers.append(sink)
             chunk_steps = sink.chunk_steps
     else:
