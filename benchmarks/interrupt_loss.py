@@ -41,7 +41,11 @@ def measure(signum: int, points: int, after: float, folder: Path) -> dict:
     path = folder / f"{signal.Signals(signum).name}.h5"
     argv = [sys.executable, "-m", "warpratchet.cli", "run", "--K", "3", "--b1", "0.1", "--b2", "0.01"]
     argv += ["--points", str(points), "--steps", "100000000", "--out", str(path), "--quiet"]
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # A shell without job control starts background jobs with SIGINT ignored; the run must see it.
+    restore = (lambda: signal.signal(signal.SIGINT, signal.SIG_DFL)) if hasattr(signal, "SIGKILL") else None
+    proc = subprocess.Popen(
+        argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=restore
+    )
     while _rows(path) == 0:
         if proc.poll() is not None:
             raise SystemExit(f"{argv} ended: {proc.communicate()[1]}")
