@@ -6,11 +6,22 @@ runners) starts a background command with SIGINT *ignored*; its children inherit
 then installs no ``KeyboardInterrupt`` handler, and the child runs on through the test's Ctrl-C
 to exit 0. Catching SIGINT here instead (Python's own handler, as in any interactive run) means
 children start with the default action again (exec resets caught signals, never ignored ones).
+
+Hypothesis runs without deadlines (the profile ``busy-machine``): no test depends on wall-clock
+timing.
 """
 
 from __future__ import annotations
 
 import signal
 
+from hypothesis import settings
+
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
+
+# No hypothesis deadline anywhere: the suite runs on busy shared machines, where an example's
+# wall time says nothing about the code (a 200 ms deadline failed test_spec under load). Examples
+# that launch kernels set deadline=None themselves too.
+settings.register_profile("busy-machine", deadline=None)
+settings.load_profile("busy-machine")

@@ -30,14 +30,14 @@ def run_argv(*flags: str) -> list[str]:
     return ["run", *MAP_FLAGS, *flags]
 
 
-def cli(*args: str, timeout: float = 120) -> subprocess.CompletedProcess:
+def cli(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
     """``warpratchet ARGS`` in a fresh process (``python -m warpratchet.cli``), output captured."""
     return subprocess.run(
         [sys.executable, "-m", "warpratchet.cli", *args], capture_output=True, text=True, timeout=timeout
     )
 
 
-def quick_benchmark(name: str, timeout: float = 300) -> dict:
+def quick_benchmark(name: str, timeout: float = 900) -> dict:
     """``benchmarks/NAME --quick --json`` in a fresh process: it must exit 0; its JSON report."""
     import json
     from pathlib import Path

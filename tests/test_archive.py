@@ -470,7 +470,10 @@ def test_cli_run_resume_inspect(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["resume", "{path}", "--steps", "600"], "not beyond the archive's checkpoint at step 600"),
+        (
+            ["resume", "{path}", "--steps", "400"],
+            "--steps 400 is behind the archive's checkpoint at step 600",
+        ),
         (
             ["resume", "{path}", "--steps", "900", "--K", "2.5"],
             "--K 2.5 disagrees with the archive's K = 3.0",

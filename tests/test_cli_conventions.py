@@ -112,7 +112,7 @@ def test_a_reader_that_leaves_early_is_not_an_error():
     )
     assert proc.stdout.read(10) == b'{"K": 3.0,'
     proc.stdout.close()  # ~300 kB are still to come: the next writes meet a closed pipe
-    assert proc.wait(timeout=120) == 141
+    assert proc.wait(timeout=900) == 141
     assert proc.stderr.read() == b""
 
 

@@ -34,7 +34,7 @@ THEORY_KEYS = {"K", "b1", "b2", "l1", "l2", "c", "domain", "S_L", "S_R", "S_C", 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
     return subprocess.run(
-        [sys.executable, "-m", "warpratchet.cli", *args], capture_output=True, text=True, timeout=300
+        [sys.executable, "-m", "warpratchet.cli", *args], capture_output=True, text=True, timeout=900
     )
 
 

@@ -47,7 +47,7 @@ def _tool(name: str) -> str:
 
 
 def _run(*argv) -> subprocess.CompletedProcess:
-    return subprocess.run(argv, capture_output=True, text=True, timeout=60)
+    return subprocess.run(argv, capture_output=True, text=True, timeout=900)
 
 
 @pytest.mark.parametrize("which", ["archive", "sweep_file"])

@@ -233,6 +233,6 @@ try:
 except OSError as exc:
     print("refused:", exc)
 """
-    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=900)
     assert proc.returncode == 0, proc.stderr
     assert "refused: cannot write" in proc.stdout and "disk full" in proc.stdout

@@ -208,7 +208,7 @@ def test_sweep_killed_with_sigkill_resumes(tmp_path, reference_rows):
         run_sweep(points, SweepSpec(**{SPEC.as_dict()!r}), out={str(out)!r}, progress=False, on_row=die)
         """
     )
-    killed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    killed = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=900)
     assert killed.returncode == -signal.SIGKILL, killed.stderr
     assert [row["index"] for row in read_sweep(out)] == [0, 1, 2]
     assert read_definition(out) == (POINTS, SPEC)
@@ -292,7 +292,7 @@ def test_sweep_scaling_benchmark_runs_every_executor_with_identical_rows():
         ],
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=900,
     )
     assert done.returncode == 0, done.stderr[-3000:]
     assert len(done.stdout.strip().splitlines()) == 1

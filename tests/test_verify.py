@@ -232,8 +232,16 @@ def test_non_finite_checkpoints_of_release_0_1_are_reported(tmp_path, capsys):
 
 
 def test_verify_refuses_a_file_a_run_is_writing(tmp_path, capsys):
+    """ "In use" is its own status (3), neither damage (1) nor "not an archive" (2); the API says
+    "in use" too, instead of reporting a write in progress as damage."""
+    from warpratchet.archive import ArchiveError, verify_archive
+
     path = tmp_path / "live.h5"
     with ArchiveSink(path, fresh(), chunk_steps=100):
-        assert main(["verify", str(path)]) == 2
-        assert "in use by another process" in capsys.readouterr().err
+        assert main(["verify", str(path)]) == 3
+        [line] = capsys.readouterr().err.strip().splitlines()
+        assert line.startswith("warpratchet: verify: ") and "in use by another process" in line
+        with pytest.raises(ArchiveError, match="in use by another process.*verify it once the run is done"):
+            verify_archive(path)
     assert main(["verify", str(path)]) == 0
+    assert verify_archive(path)[0] == []

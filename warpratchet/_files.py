@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import stat
 import tempfile
 from collections.abc import Iterator
 
@@ -200,9 +201,15 @@ def claim(path: str | os.PathLike, *, exclusive: bool) -> int:
     ------
     BlockingIOError
         Another process holds a conflicting lock (a run writing the file, or a reader).
+    FileExistsError
+        ``path`` is not a regular file (a FIFO, a device, a folder).
     """
     path = os.fspath(path)
-    fd = os.open(path, os.O_RDONLY)
+    # Non-blocking: opening a FIFO for reading would wait for a writer forever.
+    fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise FileExistsError(f"{path} exists and is not a regular file")
     if not try_lock(fd, exclusive=exclusive):
         os.close(fd)
         raise BlockingIOError(

@@ -31,9 +31,17 @@ from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from .limits import MAX_POINTS, MAX_STEP, check_kernel_range, check_memory, format_bytes
 from .observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, Summary, lyapunov, momentum_gain, summarize
 from .params import MapParams
-from .runloop import Observer, check_observers, default_chunk_steps, default_threads, open_sink, run_chunks
+from .runloop import (
+    Observer,
+    check_observers,
+    default_chunk_steps,
+    default_threads,
+    deferred_interrupts,
+    open_sink,
+    run_chunks,
+)
 from .sampling import _BUILD_CHUNK, grid_nodes, sample_grid, sample_strip, sample_torus, sampled_chunks
-from .spec import MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS
+from .spec import MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS, check_setting
 from .state import STATE_FIELDS, check_initial, check_state, initial_state
 
 __all__ = [
@@ -192,7 +200,7 @@ class Ensemble:
         Seeded with ``numpy.random.default_rng(seed)``: the same arguments give the same points.
         """
         points = check_count("points", points, 1)
-        seed = check_count("seed", seed, 0)
+        seed = check_setting("seed", seed)  # an int64, as archives and sweep files store it
         check_choice("init", init, SAMPLERS)
         # Built chunk by chunk into the state (the same points as sample_strip, sample_torus and
         # sample_grid): no full-size temporaries, so 10^8 points need little more than their state.
@@ -305,9 +313,11 @@ class Ensemble:
     ) -> Ensemble:
         """Advance every point by ``steps`` iterations, in chunks, calling observers after each.
 
-        Safe to interrupt: Ctrl-C (SIGINT) stops the run at the end of the chunk in flight, with
-        ``step`` matching the arrays and every observer's ``end`` called, then raises
-        ``KeyboardInterrupt`` (:mod:`warpratchet.runloop`).
+        Safe to interrupt: Ctrl-C (SIGINT) or SIGTERM stops the run at the end of the chunk in
+        flight, with ``step`` matching the arrays, every observer's ``end`` called and the archive
+        checkpointed at that step and closed, then raises ``KeyboardInterrupt`` (SIGTERM:
+        :class:`~warpratchet.errors.Terminated`, exit status 143); ``run(rest, archive=same)``
+        continues from there (:mod:`warpratchet.runloop`).
 
         Parameters
         ----------
@@ -361,7 +371,8 @@ class Ensemble:
             run_chunks(self, self.step + steps, observers, chunk_steps, pool)
         finally:
             if sink is not None:
-                sink.close()
+                with deferred_interrupts():  # a second Ctrl-C does not cut the archive's close
+                    sink.close()
         return self
 
     def known_ftle(self, step: int) -> np.ndarray | None:

@@ -34,6 +34,7 @@ __all__ = [
     "ResourceError",
     "NonFiniteStateError",
     "KernelError",
+    "Terminated",
     "check_count",
     "check_real",
     "check_choice",
@@ -70,6 +71,23 @@ class KernelError(WarpratchetError, RuntimeError):
     the transport hooks' guard saw two CPU threads share their scratch). Not the user's input:
     the CLI exits with status 1. Also a ``RuntimeError``.
     """
+
+
+class Terminated(SystemExit):
+    """SIGTERM (a scheduler stopping the job) during a run, raised once the run stopped cleanly.
+
+    A run turns the signal's default action (death) into this exception at the end of the chunk
+    in flight, after every observer ended (an archive wrote its checkpoint there): the
+    interpreter unwinds, closes what is open and exits with status 143 (128 + SIGTERM), the
+    status a shell reports for a process the signal ended.
+    """
+
+    def __init__(self, message: str = "") -> None:
+        super().__init__(143)
+        self.message = message
+
+    def __str__(self) -> str:
+        return self.message
 
 
 def _range_text(name: str, low: float | None, high: float | None, low_open: bool, high_open: bool) -> str:

@@ -3,14 +3,18 @@
 One idea: advance an ensemble to a target step in chunks, tell the observers after each, and
 stop only *between* chunks. Three guarantees follow from that:
 
-* **Consistent on Ctrl-C.** A Warp launch cannot be cancelled, and a chunk runs as several
-  launches (one per CPU thread): stopping halfway would leave some points a chunk ahead of the
-  step counter (``ens.step`` 0, the arrays at step 20000, every later ``A_n`` divided
-  by the wrong ``n``). So while the loop runs, SIGINT is *deferred*: the handler notes it, the
-  chunk in flight and the observers' ``after_chunk`` finish, every observer's ``end`` runs, and
-  then the original handler is called (Python's raises :class:`KeyboardInterrupt`). The
-  ensemble's ``step`` always matches its arrays. Deferral needs the main thread and a Python
-  handler (the default, IPython's); otherwise signals are left alone.
+* **Consistent on Ctrl-C and SIGTERM.** A Warp launch cannot be cancelled, and a chunk runs as
+  several launches (one per CPU thread): stopping halfway would leave some points a chunk ahead
+  of the step counter (``ens.step`` 0, the arrays at step 20000, every later ``A_n`` divided by
+  the wrong ``n``). So while the loop runs, SIGINT and SIGTERM are *deferred*: the handler notes
+  the signal, the chunk in flight finishes, every observer sees the step where the run stops
+  (``after_chunk``: an archive writes its row there, then checkpoints in ``end``), every
+  observer's ``end`` runs, and then the signal is delivered: SIGINT to the original handler
+  (Python's raises :class:`KeyboardInterrupt`), SIGTERM to its handler or, for the default
+  action (death), as :class:`~warpratchet.errors.Terminated` (exit status 143). A signal that
+  comes while the observers write (a second Ctrl-C during the checkpoint) is noted, not acted
+  on. The ensemble's ``step`` always matches its arrays. Deferral needs the main thread and a
+  Python handler or the default action; otherwise signals are left alone.
 * **Observers always end.** ``end`` is called on every observer whose ``begin`` ran, whatever
   happened (an exception, an interrupt), even if another observer's ``end`` raises; the first
   error is re-raised after all of them.
@@ -21,7 +25,8 @@ stop only *between* chunks. Three guarantees follow from that:
 Stops. An observer may define ``next_stop(step) -> int | None``: the next step after ``step``
 at which it wants to see the ensemble (a recording's log-spaced frames). The loop then ends a
 chunk there too; only the observers that asked for that step are called there, so an archive
-still gets exactly one row per regular chunk (results never depend on chunking anyway). The
+still gets exactly one row per regular chunk (results never depend on chunking anyway), except
+at the step where the run stops, which every observer sees. The
 ``seconds`` passed to ``after_chunk`` are the kernel seconds since *that* observer was last
 called.
 """
@@ -37,7 +42,7 @@ from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
-from .errors import ParameterError
+from .errors import ParameterError, Terminated
 
 __all__ = [
     "Observer",
@@ -106,40 +111,62 @@ def check_observers(observers: Any) -> list[Any]:
     return listed
 
 
+#: The signals a run defers: Ctrl-C, and the stop a scheduler (SLURM, PBS, Kubernetes) sends
+#: before it kills a job.
+DEFERRED_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
 class _Deferred:
-    """SIGINT noted while a run is between two safe points."""
+    """SIGINT or SIGTERM noted while a run is between two safe points."""
 
     def __init__(self) -> None:
         self.pending: tuple[int, Any] | None = None
-        self.previous: Any = None
+        self.previous: dict[int, Any] = {}
 
     def handler(self, signum: int, frame: Any) -> None:
-        if self.pending is None:
+        # The first signal is delivered; a SIGTERM after a Ctrl-C still ends the process.
+        if self.pending is None or signum == signal.SIGTERM:
             self.pending = (signum, frame)
+
+    def deliver(self) -> None:
+        """Act on the noted signal as its handler before the run would have."""
+        signum, frame = self.pending
+        previous = self.previous[signum]
+        if callable(previous):
+            previous(signum, frame)  # Python's SIGINT handler raises KeyboardInterrupt
+        else:  # SIGTERM's default action: end the process, but by unwinding (files close)
+            raise Terminated()
+
+
+def _deferrable(signum: int, handler: Any) -> bool:
+    """Whether a run may defer ``signum`` whose handler is ``handler``: a Python handler, or
+    SIGTERM's default action; never an ignored signal or a handler installed outside Python."""
+    return callable(handler) or (signum == signal.SIGTERM and handler == signal.SIG_DFL)
 
 
 @contextlib.contextmanager
 def deferred_interrupts() -> Iterator[_Deferred]:
-    """Defer SIGINT for the duration of the block; deliver it to the previous handler on exit.
+    """Defer SIGINT and SIGTERM for the duration of the block; deliver the signal on exit.
 
-    Yields an object whose ``pending`` is set once a SIGINT arrived. Outside the main thread, or
-    when SIGINT is ignored or has no Python handler, nothing is changed (``pending`` stays None).
+    Yields an object whose ``pending`` is set once a signal arrived. Outside the main thread, or
+    for a signal that is ignored or has no Python handler (SIGTERM: or its default action),
+    nothing is changed. Blocks nest: an inner block delivers to the outer one's handler, which
+    notes the signal again.
     """
     deferred = _Deferred()
-    installed = False
     if threading.current_thread() is threading.main_thread():
-        previous = signal.getsignal(signal.SIGINT)
-        if callable(previous):
-            deferred.previous = previous
-            signal.signal(signal.SIGINT, deferred.handler)
-            installed = True
+        for signum in DEFERRED_SIGNALS:
+            previous = signal.getsignal(signum)
+            if _deferrable(signum, previous):
+                deferred.previous[signum] = previous
+                signal.signal(signum, deferred.handler)
     try:
         yield deferred
     finally:
-        if installed:
-            signal.signal(signal.SIGINT, deferred.previous)
-            if deferred.pending is not None:
-                deferred.previous(*deferred.pending)  # Python's default raises KeyboardInterrupt
+        for signum, previous in deferred.previous.items():
+            signal.signal(signum, previous)
+        if deferred.pending is not None:
+            deferred.deliver()
 
 
 def _end_all(ensemble: Any, observers: Sequence[Any]) -> None:
@@ -221,6 +248,14 @@ def run_chunks(
                 for obs in called:
                     elapsed, unseen[id(obs)] = unseen[id(obs)], 0.0
                     obs.after_chunk(ensemble, elapsed)
+                if interrupt.pending is not None:
+                    # The run stops here: the observers that did not ask for this step see it
+                    # too (an archive's row, so that its checkpoint can stand here).
+                    seen = {id(obs) for obs in called}
+                    for obs in observers:
+                        if id(obs) not in seen:
+                            elapsed, unseen[id(obs)] = unseen[id(obs)], 0.0
+                            obs.after_chunk(ensemble, elapsed)
         finally:
             if pool is not None:
                 pool.shutdown(wait=True)

@@ -54,7 +54,15 @@ NO_CLOSED_FORM = (
 )
 
 
+def _check_params(p: object) -> None:
+    """TypeError naming the argument unless ``p`` is a :class:`MapParams` (not an AttributeError
+    from deep inside)."""
+    if not isinstance(p, MapParams):
+        raise TypeError(f"p = {p!r} is not a MapParams (warpratchet.MapParams(K, b1, b2))")
+
+
 def _require_K3(p: MapParams, what: str) -> None:
+    _check_params(p)
     if p.K != 3.0:
         raise ValueError(
             f"{what} is exact only at K = 3 (Sec. IV, Appendices B-E); got K = {p.K!r}. "
@@ -84,6 +92,7 @@ def accelerator_modes(p: MapParams) -> list[tuple[int, float]]:
     exists when ``x0`` lies in the elliptic middle branch, Eq. (cam): ``b1 < x0 < 1 - b2``.
     ``w = +1`` is the left (L) island, ``w = -1`` the right (R) one.
     """
+    _check_params(p)
     modes = []
     if p.K >= 2.0:
         for w in (1, -1):
@@ -95,12 +104,14 @@ def accelerator_modes(p: MapParams) -> list[tuple[int, float]]:
 
 def island_exists(p: MapParams, side: Literal["L", "R"]) -> bool:
     """Whether the left (``w = 1``) or right (``w = -1``) period-1 island exists, Eq. (cam)."""
+    _check_params(p)
     w = {"L": 1, "R": -1}[side]
     return any(mode_w == w for mode_w, _ in accelerator_modes(p))
 
 
 def domain(p: MapParams) -> Domain:
     """Existence domain of Fig. 3: ``"LR"`` (Eq. ca), ``"L"``/``"R"`` (Eq. cb), ``"none"`` (Eq. cc)."""
+    _check_params(p)
     left, right = island_exists(p, "L"), island_exists(p, "R")
     return {(True, True): "LR", (True, False): "L", (False, True): "R"}.get((left, right), "none")
 
@@ -112,18 +123,21 @@ def symmetric_bound(K: float) -> float:
 
 def necessary_condition(p: MapParams) -> bool:
     """Eq. (ccs): at least one period-1 island needs ``b1 + b2 < (K - 2)/(K - 1)``."""
+    _check_params(p)
     return p.b < (p.K - 2.0) / (p.K - 1.0)
 
 
 # -- Appendices D and E: areas at K = 3 ----------------------------------------------------------
 def area_left(p: MapParams) -> float:
     """Area of the left island, Eq. (SL): ``S_L = (3c - 3 b1 - 1)^2 / 2``; 0 where it does not exist."""
+    _check_params(p)
     _require_K3(p, "S_L")
     return 0.5 * (3.0 * p.c - 3.0 * p.b1 - 1.0) ** 2 if island_exists(p, "L") else 0.0
 
 
 def area_right(p: MapParams) -> float:
     """Area of the right island, Eq. (SR): ``S_R = (2 - 3 b2 - 3c)^2 / 2``; 0 where it does not exist."""
+    _check_params(p)
     _require_K3(p, "S_R")
     return 0.5 * (2.0 - 3.0 * p.b2 - 3.0 * p.c) ** 2 if island_exists(p, "R") else 0.0
 
@@ -134,6 +148,7 @@ def area_chaotic(p: MapParams) -> float | None:
     Eq. (SC1) in domain LR, Eq. (SC2) in domain R (the missing L triangle, Eq. SL, is added),
     Eq. (SC3) in domain L. ``None`` in domain "none", where the paper gives no formula.
     """
+    _check_params(p)
     _require_K3(p, "S_C")
     b = p.b
     base = 3.0 * b - 3.0 * b * b  # Eq. (SC1)
@@ -238,6 +253,7 @@ def summary(p: MapParams) -> dict[str, object]:
     ``S_L, S_R, S_C, A`` are ``None`` where not defined (``K != 3``; ``S_C`` in domain "none").
     Another force than Eq. (fx) has none of them: :data:`NO_CLOSED_FORM` says why.
     """
+    _check_params(p)
     if not p.is_paper:
         return {
             **p.as_dict(),

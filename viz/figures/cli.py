@@ -88,6 +88,8 @@ def _draw(args: argparse.Namespace) -> int:
         raise ValueError(f"--dpi {args.dpi}: outside the allowed range 20-1200")
     if args.out.exists() and not args.out.is_dir():
         raise ValueError(f"--out {args.out}: exists and is not a directory")
+    if args.sweeps is not None and args.sweeps.exists() and not args.sweeps.is_dir():
+        raise ValueError(f"--sweeps {args.sweeps}: exists and is not a directory")
     existing = [args.out / f"{n}.{f}" for n in names for f in formats if (args.out / f"{n}.{f}").exists()]
     if existing and not args.overwrite:
         raise ValueError(

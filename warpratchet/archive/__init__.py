@@ -28,7 +28,7 @@ in :mod:`warpratchet._files`.
 """
 
 from .._files import SWMR_READ_ATTEMPTS
-from .chunking import CHECKPOINT_CHUNKS, MIN_ARCHIVE_CHUNK_STEPS, run_to, schedule
+from .chunking import CHECKPOINT_CHUNKS, CHECKPOINT_SECONDS, MIN_ARCHIVE_CHUNK_STEPS, run_to, schedule
 from .names import (
     FORMAT,
     FORMAT_VERSION,
@@ -53,6 +53,7 @@ __all__ = [
     "SERIES_FIELDS",
     "SNAPSHOT_FIELDS",
     "CHECKPOINT_CHUNKS",
+    "CHECKPOINT_SECONDS",
     "MIN_ARCHIVE_CHUNK_STEPS",
     "SWMR_READ_ATTEMPTS",
     "ArchiveError",

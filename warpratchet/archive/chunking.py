@@ -14,10 +14,13 @@ from collections.abc import Iterable
 
 from ..ensemble import STATE_FIELDS, Ensemble, Observer, default_chunk_steps
 from ..errors import ParameterError, check_count, check_optional
+from ..limits import MAX_STEP
 from ..observables import summarize
+from ..spec import CHECKPOINT_SECONDS
 
 __all__ = [
     "CHECKPOINT_CHUNKS",
+    "CHECKPOINT_SECONDS",
     "MIN_ARCHIVE_CHUNK_STEPS",
     "ROW_SHARE",
     "schedule",
@@ -120,14 +123,13 @@ def _quiet_summary(state, step) -> None:
 
 
 def _largest_divisor_at_most(n: int, cap: int) -> int:
+    """The largest divisor of ``n`` not above ``cap``: divisors pair up as ``d * (n // d)``, so
+    ``d`` up to ``min(cap, sqrt(n))`` finds each one at most ``cap`` (a few 10^5 trials at most,
+    whatever ``n``; not up to sqrt(n), which for n near 2^63 is 3e9)."""
     best = 1
-    d = 1
-    while d * d <= n:
+    for d in range(1, min(cap, math.isqrt(n)) + 1):
         if n % d == 0:
-            for c in (d, n // d):
-                if best < c <= cap:
-                    best = c
-        d += 1
+            best = max(best, d, n // d if n // d <= cap else 1)
     return best
 
 
@@ -168,8 +170,8 @@ def schedule(
         admit chunks so short that the run would crawl.
     """
     points = check_count("points", points, 1)
-    snapshot_every = check_count("snapshot_every", snapshot_every, 0)
-    checkpoint_every = check_optional(check_count, "checkpoint_every", checkpoint_every, 1)
+    snapshot_every = check_count("snapshot_every", snapshot_every, 0, MAX_STEP)
+    checkpoint_every = check_optional(check_count, "checkpoint_every", checkpoint_every, 1, MAX_STEP)
     intervals = {
         name: v
         for name, v in (("snapshot_every", snapshot_every), ("checkpoint_every", checkpoint_every))

@@ -80,7 +80,13 @@ RUN_SETTINGS = (
     "values",
 )
 #: The archive's own settings besides ``chunk_steps`` (a RunSpec setting) and the kernel's.
-ARCHIVE_SETTINGS = ("chunk_steps", "checkpoint_every", "snapshot_every", "snapshot_points")
+ARCHIVE_SETTINGS = (
+    "chunk_steps",
+    "checkpoint_every",
+    "checkpoint_seconds",
+    "snapshot_every",
+    "snapshot_points",
+)
 
 #: Initial-state fill values: a field equal to its fill everywhere is not written (costs no space).
 FILL = {"x": 0.0, "q": 0.0, "winding": 0, "p0": 0.0, "dx": 1.0, "dp": 0.0, "log_stretch": 0.0}
@@ -120,6 +126,7 @@ def run_settings(
     threshold_rule: str = "strict",
     chunk_steps: int,
     checkpoint_every: int,
+    checkpoint_seconds: float,
     snapshot_every: int,
     snapshot_points: int,
 ) -> dict[str, Any]:
@@ -136,6 +143,7 @@ def run_settings(
         "device": ensemble.device,
         "chunk_steps": chunk_steps,
         "checkpoint_every": checkpoint_every,
+        "checkpoint_seconds": checkpoint_seconds,
         "snapshot_every": snapshot_every,
         "snapshot_points": snapshot_points,
     }

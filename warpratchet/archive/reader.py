@@ -56,6 +56,8 @@ class Archive:
         self.path = os.fspath(path)
         if not os.path.exists(self.path):
             raise ArchiveError(f"{self.path}: no such archive")
+        if not os.path.isfile(self.path):  # a FIFO or device would block HDF5's open forever
+            raise ArchiveError(f"{self.path} is not a regular file (not a warpratchet archive)")
         try:
             self._file = open_h5(self.path, locking=locking)
         except OSError as exc:
@@ -290,7 +292,7 @@ class Archive:
             "snapshots": self.snapshot_count,
             "latest": _last_row(series),
             "history": history_info(self.history),
-            **progress.estimate(series, self.target_step, self.initial_step),
+            **progress.estimate(series, self.target_step, self.initial_step, checkpoint_step),
         }
 
     # -- exports ----------------------------------------------------------------------------------

@@ -49,7 +49,7 @@ def reopen(
         raise ArchiveError(f"{path}: no such archive")
     try:
         old_fd = claim(path, exclusive=True)
-    except (FileNotFoundError, BlockingIOError) as exc:
+    except (FileNotFoundError, FileExistsError, BlockingIOError) as exc:
         raise ArchiveError(str(exc)) from None
     try:
         old = salvage(path, threads=threads, device=device)

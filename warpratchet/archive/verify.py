@@ -9,11 +9,14 @@ non-finite state). It reports; it never repairs (``warpratchet resume`` keeps wh
 
 from __future__ import annotations
 
+import contextlib
 import os
+from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 
+from .._files import claim
 from .._h5verify import first_line, read_everything
 from .checks import listed, nonfinite, read_counter
 from .history_group import history_counts
@@ -42,6 +45,24 @@ def _check_history(arc: Archive, problems: list[str]) -> None:
         problems.append(f"/history: damaged ({first_line(exc)})")
 
 
+@contextlib.contextmanager
+def _alone(path: str) -> Iterator[None]:
+    """Hold an exclusive claim on ``path`` for the block, or ArchiveError naming it "in use"."""
+    if not os.path.exists(path):
+        yield  # Archive names it missing
+        return
+    try:
+        fd = claim(path, exclusive=True)
+    except BlockingIOError as exc:
+        raise ArchiveError(f"{exc}; verify it once the run is done") from None
+    except FileExistsError as exc:
+        raise ArchiveError(str(exc)) from None
+    try:
+        yield
+    finally:
+        os.close(fd)
+
+
 def verify_archive(path: str | os.PathLike) -> tuple[list[str], dict[str, Any]]:
     """Every problem of the archive at ``path`` (empty: clean) and what was checked.
 
@@ -55,11 +76,13 @@ def verify_archive(path: str | os.PathLike) -> tuple[list[str], dict[str, Any]]:
     Raises
     ------
     ArchiveError
-        The file is not a warpratchet archive (or not one this release reads) at all.
+        The file is not a warpratchet archive (or not one this release reads) at all, or it is
+        in use by another process (a run writing it shows writes in progress, not damage:
+        verify it once the run is done).
     """
     path = os.fspath(path)
     problems: list[str] = []
-    with Archive(path) as arc:
+    with _alone(path), Archive(path) as arc:
         counts = read_everything(arc.h5, path, problems)
         checked = {"format": "warpratchet-archive", "format_version": arc.format_version, **counts}
         for key, where in COUNTERS[arc.format_version].items():

@@ -43,7 +43,7 @@ from .._files import (
 from ..ensemble import STATE_FIELDS, Ensemble, Observer
 from ..errors import check_count, check_optional, check_real
 from ..history import History
-from ..spec import check_setting
+from ..spec import CHECKPOINT_SECONDS, check_checkpoint_seconds, check_setting
 from . import layout
 from . import transport as _transport
 from .building import as_archive_error, build_file
@@ -89,6 +89,10 @@ class ArchiveSink(Observer):
         Steps between snapshots (0: none).
     snapshot_points : int
         Points ``M`` in the snapshot subsample (at most the ensemble size).
+    checkpoint_seconds : float
+        Checkpoint also at the chunk end after which the next one would come more than this
+        many seconds (wall clock) after the last checkpoint, so that a kill loses at most about
+        this much work (default :data:`~warpratchet.archive.chunking.CHECKPOINT_SECONDS`).
     checkpoint_every, chunk_steps : int, optional
         See :func:`~warpratchet.archive.chunking.schedule`; the default chunk is long enough
         that a series row costs at most :data:`~warpratchet.archive.chunking.ROW_SHARE` of the
@@ -126,6 +130,7 @@ class ArchiveSink(Observer):
         snapshot_every: int = 0,
         snapshot_points: int = 1000,
         checkpoint_every: int | None = None,
+        checkpoint_seconds: float = CHECKPOINT_SECONDS,
         threshold: float | None = None,
         chunk_steps: int | None = None,
         threshold_rule: str = "strict",
@@ -137,6 +142,7 @@ class ArchiveSink(Observer):
         if not isinstance(ensemble, Ensemble):
             raise ValueError(f"ensemble = {ensemble!r} is not an Ensemble")
         snapshot_points = check_count("snapshot_points", snapshot_points, 1)
+        checkpoint_seconds = check_checkpoint_seconds(checkpoint_seconds)
         threshold = check_optional(check_real, "threshold", threshold, 0.0)
         threshold_rule = check_setting("threshold_rule", threshold_rule)
         if history is not None:
@@ -162,6 +168,7 @@ class ArchiveSink(Observer):
                 threshold_rule=threshold_rule,
                 chunk_steps=chunk_steps,
                 checkpoint_every=checkpoint_every,
+                checkpoint_seconds=checkpoint_seconds,
                 snapshot_every=snapshot_every,
                 snapshot_points=m,
             )
@@ -220,6 +227,8 @@ class ArchiveSink(Observer):
         self.settings = settings
         self.chunk_steps = int(settings["chunk_steps"])
         self.checkpoint_every = int(settings["checkpoint_every"])
+        # Archives from before the wall-clock cadence get the default.
+        self.checkpoint_seconds = float(settings.get("checkpoint_seconds") or CHECKPOINT_SECONDS)
         self.snapshot_every = int(settings["snapshot_every"])
         self.threshold = settings["threshold"]
         self.threshold_rule = settings.get("threshold_rule") or "strict"
@@ -244,6 +253,10 @@ class ArchiveSink(Observer):
         self._lock_fd = None
         self._failed = False
         self._current = int(f["checkpoint"]["current"][0])
+        #: What a refused write's message tells the user to do once there is space (the CLI: "run
+        #: the same command again to resume it"); None: how to continue in Python.
+        self.how_to_continue: str | None = None
+        self._checkpoint_clock = self._row_clock = time.monotonic()
 
     #: Reopen an archive for appending from its newest good checkpoint (:func:`.reopen.reopen`).
     resume = classmethod(reopen)
@@ -253,9 +266,12 @@ class ArchiveSink(Observer):
     def _writing(self) -> Iterator[None]:
         """A write of the running archive: a refused write or a non-finite state ends the sink
         (no end checkpoint), leaving the file as its last successful flush left it."""
+        how = self.how_to_continue or (
+            f"continue from it with open_archive(path).ensemble() (this ensemble is at step "
+            f"{self.ensemble.step}, ahead of the archive)"
+        )
         hint = (
-            f"; the archive keeps its checkpoint at step {self.checkpoint_step}: once there is space, "
-            "run the same command again to resume it"
+            f"; the archive keeps its checkpoint at step {self.checkpoint_step}: once there is space, {how}"
         )
         try:
             with storage_errors(self.path, "write", hint):
@@ -283,6 +299,8 @@ class ArchiveSink(Observer):
             raise ValueError(f"{self.path}: the archive sink is closed")
         self._target = int(target_step)
         self._row_step = None  # the step of the last row this run wrote
+        # Wall clock of the last checkpoint and of the last row: the checkpoint cadence.
+        self._checkpoint_clock = self._row_clock = time.monotonic()
         if self.history is not None:
             self.history.begin(ensemble, self._target)  # idempotent: also an observer of the run
         with self._writing():
@@ -325,7 +343,12 @@ class ArchiveSink(Observer):
                 self._last_snapshot = step
             f.flush()
         self._row_step = step
-        if step // self.checkpoint_every > self.checkpoint_step // self.checkpoint_every:
+        now = time.monotonic()
+        # The last chunk's wall time predicts the next one's: checkpoint now if waiting for the
+        # next chunk end would leave more than checkpoint_seconds of work unsaved.
+        last_chunk, self._row_clock = now - self._row_clock, now
+        due_by_clock = now - self._checkpoint_clock + last_chunk > self.checkpoint_seconds
+        if due_by_clock or step // self.checkpoint_every > self.checkpoint_step // self.checkpoint_every:
             self.checkpoint()
 
     def end(self, ensemble: Ensemble) -> None:
@@ -369,6 +392,7 @@ class ArchiveSink(Observer):
             write_slot(self.path, self._file, free, state, ensemble.step, extra, extra_bytes)
         self._current = free
         self.checkpoint_step = ensemble.step
+        self._checkpoint_clock = self._row_clock = time.monotonic()
 
     def close(self) -> None:
         """Trim the datasets to their valid rows, flush and close (a complete, resumable archive)."""

@@ -11,7 +11,8 @@ unreadable file while a command runs: ``warpratchet: error: ...`` alone); a writ
 (disk full, read-only, permissions: :class:`warpratchet.StorageError`) one line and status 1,
 as does a launch the code refuses to vouch for (:class:`warpratchet.errors.KernelError`);
 Ctrl-C prints one line (where it stopped, what was kept: :class:`.common.Interrupted`) and exits
-with 130 (128 + SIGINT).
+with 130 (128 + SIGINT); SIGTERM, a scheduler's stop, the same line with ``terminated`` and 143
+(128 + SIGTERM).
 
 A new subcommand is a new module with ``add`` and ``command``, listed in :data:`SUBCOMMANDS`,
 with its examples in :data:`EXAMPLES`.
@@ -147,9 +148,9 @@ def _joined_lists(argv: list[str]) -> list[str]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; returns the exit status (2 for bad input, 130 on Ctrl-C)."""
+    """Run the command line; returns the exit status (2 for bad input, 130 on Ctrl-C, 143 on SIGTERM)."""
     from .. import StorageError
-    from ..errors import KernelError
+    from ..errors import KernelError, Terminated
 
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
@@ -184,10 +185,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except (ValueError, OSError) as exc:
         print(f"warpratchet: error: {exc}", file=sys.stderr)
         return 2
+    except Terminated:  # SIGTERM during a run that stopped cleanly but said nothing more
+        print("warpratchet: terminated", file=sys.stderr)
+        return 143
     except KeyboardInterrupt as exc:
         detail = str(exc) if isinstance(exc, Interrupted) else ""
-        print(f"warpratchet: interrupted{' ' + detail if detail else ''}", file=sys.stderr)
-        return 130
+        what = "terminated" if getattr(exc, "terminated", False) else "interrupted"
+        print(f"warpratchet: {what}{' ' + detail if detail else ''}", file=sys.stderr)
+        return getattr(exc, "status", 130)
 
 
 if __name__ == "__main__":  # pragma: no cover

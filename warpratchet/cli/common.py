@@ -10,21 +10,24 @@ the flag named: ``argument --points: points = 0 is outside the allowed range 1 <
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import difflib
 import json
 import math
 import sys
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any, NoReturn
 
-from ..errors import ParameterError, check_count
+from ..errors import ParameterError, Terminated, check_count
 from ..progress import ProgressBar
+from ..runloop import deferred_interrupts
 from ..spec import RunSpec, setting_of
 
 __all__ = [
     "UsageError",
     "Interrupted",
+    "stopping",
     "Parser",
     "ProgressBar",
     "emit_json",
@@ -58,11 +61,32 @@ class UsageError(Exception):
 
 
 class Interrupted(KeyboardInterrupt):
-    """Ctrl-C, with where it stopped, what was kept and how to go on.
+    """Ctrl-C or SIGTERM, with where it stopped, what was kept and how to go on.
 
-    The CLI prints ``warpratchet: interrupted <message>``, e.g. ``... interrupted at step 2000 of
-    120000``.
+    The CLI prints ``warpratchet: interrupted <message>`` (SIGTERM: ``terminated``), e.g.
+    ``... interrupted at step 2000 of 120000``, and exits with :attr:`status`: 130 (128 + SIGINT)
+    or 143 (128 + SIGTERM).
     """
+
+    def __init__(self, message: str = "", *, terminated: bool = False) -> None:
+        super().__init__(message)
+        self.terminated = terminated
+        self.status = 143 if terminated else 130
+
+
+@contextlib.contextmanager
+def stopping(describe: Callable[[], str]) -> Iterator[None]:
+    """Run the block with Ctrl-C and SIGTERM deferred to its end, then raise :class:`Interrupted`.
+
+    What the block closes (an archive, after the run wrote its checkpoint where it stopped)
+    closes before the signal is acted on, so a second Ctrl-C cannot cut it short; the signal
+    then becomes one :class:`Interrupted` whose message is ``describe()``.
+    """
+    try:
+        with deferred_interrupts():
+            yield
+    except (KeyboardInterrupt, Terminated) as exc:
+        raise Interrupted(describe(), terminated=isinstance(exc, Terminated)) from None
 
 
 #: Longest usage line printed as argparse writes it; a longer usage is shortened to one line.

@@ -1,7 +1,9 @@
 """``warpratchet inspect``: parameters, progress and latest summary of an archive (also while it runs).
 
 Progress is the verified checkpoint, the rows, and (format v2, which stores the run's target step)
-the percentage done with an estimate of the kernel time left from the recorded wall times. A
+the percentage done: at the checkpoint (what a rerun keeps) and, where it differs, at the newest
+row (how far a live run is), with an estimate of the kernel time left from the recorded wall
+times. A
 damaged or non-finite checkpoint is a ``warpratchet: warning:`` line on stderr naming what a
 resume would start from instead.
 """
@@ -67,7 +69,12 @@ def command(args: argparse.Namespace) -> int:
         f"{info['snapshots']} snapshots"
     )
     if info["target_step"] is not None:
-        done = f"  target: step {info['target_step']}, {100 * info['done']:.1f}% done"
+        done = (
+            f"  target: step {info['target_step']}, {100 * info['done']:.1f}% done at the checkpoint "
+            "(where a rerun continues)"
+        )
+        if info["latest_done"] != info["done"]:
+            done += f", {100 * info['latest_done']:.1f}% at the newest row"
         if info["eta_seconds"] == 0:
             done += " (complete)"
         elif info["eta_seconds"] is not None:

@@ -7,11 +7,12 @@ must equal the archive's (a guard against resuming the wrong file). Output: ``ru
 from __future__ import annotations
 
 import argparse
+import sys
 import time
 import warnings
 
 from ..spec import LEGACY_NAMES
-from .common import ProgressBar, UsageError, print_warnings, spec_flag, spec_flags
+from .common import ProgressBar, UsageError, print_warnings, spec_flag, spec_flags, stopping
 from .report import history_report, print_report, run_report
 
 #: Settings that may be given to check them against the archive.
@@ -44,6 +45,30 @@ def _archived(arc) -> dict:
     return {**stored, **arc.params.as_dict(), "points": arc.points}
 
 
+def _report_complete(args: argparse.Namespace, caught: list) -> int:
+    """The report of an archive already at ``--steps`` (as ``run --out`` gives one): nothing run."""
+    from ..archive import ArchiveWarning, open_archive
+
+    with warnings.catch_warnings(record=True) as more:
+        warnings.simplefilter("always", ArchiveWarning)
+        with open_archive(args.archive) as arc:
+            ensemble = arc.ensemble(threads=args.threads, device=args.device)
+            history = arc.history
+    print_warnings([*caught, *more])
+    if not args.quiet:
+        print(
+            f"warpratchet: {args.archive} holds all {args.steps} steps already: its report, nothing run",
+            file=sys.stderr,
+        )
+    settings = arc.settings
+    report = run_report(ensemble, 0.0, 0, settings["threshold"], settings["threshold_rule"])
+    if history is not None:
+        report.update(history_report(history, settings["threshold_rule"]))
+    report["archive"] = args.archive
+    print_report(report, args.json)
+    return 0
+
+
 def command(args: argparse.Namespace) -> int:
     from ..archive import ArchiveSink, ArchiveWarning, open_archive, run_to
 
@@ -59,28 +84,34 @@ def command(args: argparse.Namespace) -> int:
                 raise UsageError(
                     f"--{key} {asked} disagrees with the archive's {key} = {stored} in {args.archive}"
                 )
-        if args.steps <= start_step:
+        if args.steps < start_step:
             raise UsageError(
-                f"--steps {args.steps} is not beyond the archive's checkpoint at step "
-                f"{start_step}; pass a total above {start_step}"
+                f"--steps {args.steps} is behind the archive's checkpoint at step "
+                f"{start_step}; pass a total of at least {start_step}"
             )
+        if args.steps == start_step:  # done already (the same resume again): report, touch nothing
+            return _report_complete(args, caught)
         sink, ensemble = ArchiveSink.resume(args.archive, threads=args.threads, device=args.device)
     print_warnings(caught)
+    sink.how_to_continue = "run the same command again to resume it"
     from ..history import History
 
     # An archive written before histories existed: this session's rows only, not archived.
     history = sink.history or History(sink.threshold, sink.threshold_rule)
     first = ensemble.step
     start = time.perf_counter()
-    try:
-        run_to(ensemble, args.steps, [ProgressBar(disable=args.quiet), history, sink], sink.chunk_steps)
-    except KeyboardInterrupt:
-        raise KeyboardInterrupt(
-            f"{args.archive} keeps the checkpoint at step {sink.checkpoint_step}; "
-            "run the same command again to continue"
-        ) from None
-    finally:
-        sink.close()
+
+    def stopped() -> str:
+        return (
+            f"at step {ensemble.step} of {args.steps}; {args.archive} keeps the checkpoint at step "
+            f"{sink.checkpoint_step}: run the same command again to continue"
+        )
+
+    with stopping(stopped):
+        try:
+            run_to(ensemble, args.steps, [ProgressBar(disable=args.quiet), history, sink], sink.chunk_steps)
+        finally:
+            sink.close()
     seconds = time.perf_counter() - start
     report = run_report(ensemble, seconds, args.steps - first, sink.threshold, sink.threshold_rule)
     report.update(history_report(history, sink.threshold_rule))

@@ -19,8 +19,9 @@ import os
 import sys
 from typing import Any
 
-from ..spec import RunSpec
-from .common import UsageError, count_type
+from ..limits import MAX_STEP
+from ..spec import CHECKPOINT_SECONDS, RunSpec, check_checkpoint_seconds
+from .common import UsageError, _typed, count_type
 
 
 def _first_given(flags: list[tuple[str, Any]], needs: str) -> None:
@@ -38,9 +39,10 @@ def _count_flag(
     default: int | None,
     help: str,
     metavar: str | None = None,
+    high: int | None = None,
 ) -> None:
     """A count flag whose errors name it as a setting (``--snapshot-every`` -> ``snapshot_every``)."""
-    kind = count_type(flag[2:].replace("-", "_"), low)
+    kind = count_type(flag[2:].replace("-", "_"), low, high)
     p.add_argument(flag, type=kind, default=default, help=help, metavar=metavar)
 
 
@@ -50,12 +52,27 @@ def add_archive_flags(p: argparse.ArgumentParser) -> None:
     p.add_argument("--force", action="store_true", help="with --out: replace an existing file")
     with_out = "with --out: steps between"
     _count_flag(
-        p, "--snapshot-every", 0, 0, f"{with_out} x, p snapshots of a fixed subsample (default 0: none)"
+        p,
+        "--snapshot-every",
+        0,
+        0,
+        f"{with_out} x, p snapshots of a fixed subsample (default 0: none)",
+        high=MAX_STEP,
     )
     _count_flag(
         p, "--snapshot-points", 1, None, "with --out: points in the snapshot subsample (default 1000)"
     )
-    _count_flag(p, "--checkpoint-every", 1, None, f"{with_out} full checkpoints (default 8 chunks)")
+    _count_flag(
+        p, "--checkpoint-every", 1, None, f"{with_out} full checkpoints (default 8 chunks)", high=MAX_STEP
+    )
+    p.add_argument(
+        "--checkpoint-seconds",
+        type=_typed(float, check_checkpoint_seconds),
+        default=None,
+        metavar="SECONDS",
+        help="with --out: also checkpoint so that at most this much work (wall clock) is unsaved "
+        f"(default {CHECKPOINT_SECONDS:g})",
+    )
 
 
 def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | None:
@@ -69,11 +86,17 @@ def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | No
                 ("--snapshot-every", args.snapshot_every),
                 ("--snapshot-points", args.snapshot_points),
                 ("--checkpoint-every", args.checkpoint_every),
+                ("--checkpoint-seconds", args.checkpoint_seconds is not None),
             ],
             "--out FILE",
         )
         return None
     schedule(spec.points, spec.chunk_steps, args.snapshot_every, args.checkpoint_every)  # ValueError if bad
+    if args.snapshot_points is not None and args.snapshot_points > spec.points:
+        raise UsageError(
+            f"--snapshot-points {args.snapshot_points} is more than the run's {spec.points} points "
+            f"(allowed range 1 <= snapshot_points <= {spec.points})"
+        )
     if os.path.lexists(args.out) and not args.force:
         return {"resume": _resumable(args, spec)}
     return {
@@ -81,6 +104,7 @@ def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | No
         "snapshot_every": args.snapshot_every,
         "snapshot_points": 1000 if args.snapshot_points is None else args.snapshot_points,
         "checkpoint_every": args.checkpoint_every,
+        **({} if args.checkpoint_seconds is None else {"checkpoint_seconds": args.checkpoint_seconds}),
         "chunk_steps": spec.chunk_steps,
         "threshold": spec.threshold,
         "threshold_rule": spec.threshold_rule,
@@ -116,6 +140,7 @@ def _resumable(args: argparse.Namespace, spec: RunSpec) -> int:
     given = {
         "snapshot_points": args.snapshot_points,
         "checkpoint_every": args.checkpoint_every,
+        "checkpoint_seconds": args.checkpoint_seconds,
         "chunk_steps": spec.chunk_steps,
     }
     asked.update({k: v for k, v in given.items() if v is not None})

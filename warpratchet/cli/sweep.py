@@ -204,6 +204,8 @@ def _print_rows(rows: list[dict], computed: int, out: str | None) -> None:
 def command(args: argparse.Namespace) -> int:
     from .. import sweep
 
+    if args.force and args.out is None:
+        raise UsageError("--force needs --out FILE (it replaces that file)")
     points = _sweep_points(args)
     spec = spec_from_args(args, sweep.SweepSpec)
     computed = []

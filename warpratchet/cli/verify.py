@@ -1,7 +1,8 @@
 """``warpratchet verify FILE``: check every checksum and value of an archive or sweep file.
 
 Exit status 0 when the file is clean, 1 when something is damaged (each problem on its own
-line, ``FILE: damaged: ...``), 2 when FILE is missing or is not an archive or sweep file at all.
+line, ``FILE: damaged: ...``), 2 when FILE is missing or is not an archive or sweep file at all,
+3 when another process is using it (a run writing it: verify it once the run is done).
 Format v1 files (release 0.1.0) are checked too; v1 sweep files carry no checksums, which the
 report says.
 """
@@ -10,9 +11,12 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 
 from .common import UsageError, emit_json
 
+#: Exit status for a file another process is using (not damaged, not the wrong file: try later).
+IN_USE = 3
 #: The first bytes of every HDF5 file (a file without them is not one: a usage error, exit 2).
 _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
@@ -49,7 +53,8 @@ def command(args: argparse.Namespace) -> int:
     try:  # a file a run is writing may show a write in progress: verify it once the run is done
         os.close(claim(path, exclusive=True))
     except BlockingIOError as exc:
-        raise UsageError(f"verify: {exc}") from None
+        print(f"warpratchet: verify: {exc}", file=sys.stderr)
+        return IN_USE
     checked: dict = {}
     try:
         kind = _kind(path)
