@@ -396,3 +396,26 @@ def test_the_merge_gathers_numbers_per_block_and_row_not_per_point():
         merged = ShardedRun(spec, records, True)
         gathered.append(merged.gathered_bytes)
     assert abs(gathered[1] - gathered[0]) < gathered[0] // 100 and gathered[1] < 16 * 40000
+
+
+def test_out_of_a_transport_run_holds_the_merged_transport_group(client, tmp_path):
+    from warpratchet import open_archive
+    from warpratchet.archive.verify import verify_archive
+
+    out = tmp_path / "run.h5"
+    run_sharded(SPEC, client, 3, transport=True, out=out)
+    whole = TransportEnsemble.sample(SPEC.params, SPEC.points, SPEC.init, SPEC.seed, threads=2)
+    whole.threshold, whole.threshold_rule = SPEC.threshold, SPEC.threshold_rule
+    whole.run(SPEC.steps, chunk_steps=SPEC.chunk_steps)
+    expected = whole.transport_state()
+    with open_archive(out) as arc:
+        rows = arc.transport
+        _, step, state = arc.checkpoint_with_transport()
+        features = arc.features
+    assert "transport" in features
+    assert rows["step"][-1] == SPEC.steps and np.array_equal(rows["counts"][-1], expected.counts)
+    assert step == SPEC.steps and np.array_equal(state.counts, expected.counts)
+    assert all(np.array_equal(state.carry[k], v) for k, v in expected.carry.items())
+    assert np.array_equal(state.spread_steps, expected.spread_steps)
+    assert exact(state.spread) == exact(expected.spread)
+    assert verify_archive(out)[0] == []

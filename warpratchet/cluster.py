@@ -604,6 +604,7 @@ class ShardedRun:
         counts = sum(r.counts for r in self._records)
         still_open = sum(r.open_counts for r in self._records)
         steps = spread_steps(0, self.step)
+        self.counts = counts
         spec = self.spec
         rows = [(self._steps.index(n), n, self._limit(n, spec.threshold, spec.threshold_rule)) for n in steps]
         moments = np.zeros((len(steps), GROUPS, 3))
@@ -619,6 +620,8 @@ class ShardedRun:
                 squares = cluster.submit(_spread_link, source, rows, squares, self.points, mean)
             m2 = cluster.gather([squares])[0][0]
             moments = np.stack([count, mean, m2], axis=2)
+        # the transport state's counts and spread rows, as a TransportEnsemble's own
+        self.spread_steps, self.spread = np.array(steps, dtype=np.int64), moments
         var = np.array([pooled_variance(m) for m in moments], dtype=np.float64)
         fit = diffusion_fit(
             np.array(steps, dtype=np.int64), var, moments.transpose(1, 0, 2) if len(steps) else None
