@@ -99,10 +99,14 @@ def _kind(transport: bool):
 def shard_bytes(spec: RunSpec, points: int, transport: bool = False, on_disk: bool = False) -> int:
     """Memory a shard of ``points`` points needs on its worker: the state (and transport's
     carry), one summary's working memory, and its records: 16 B per point per history row, or
-    with ``on_disk`` (records in a workdir) one row of them."""
-    rows = 1 if on_disk else len(history_steps(0, spec.steps))
+    with ``on_disk`` (records in a workdir) one row of them; and for the merge, a block of points
+    that shards share, whose records at every row one task holds (twice: the pieces and the row
+    they make)."""
+    every = len(history_steps(0, spec.steps))
+    rows = 1 if on_disk else every
     state = _kind(transport).bytes_per_point()
-    return points * (state + 16 * rows) + min(points, _obs.SUMMARY_CHUNK) * SUMMARY_BYTES_PER_POINT
+    shared = 2 * min(_ensemble_size(spec), _obs.SUMMARY_CHUNK) * 16 * every
+    return points * (state + 16 * rows) + min(points, _obs.SUMMARY_CHUNK) * SUMMARY_BYTES_PER_POINT + shared
 
 
 @dataclass
