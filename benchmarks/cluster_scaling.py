@@ -14,18 +14,20 @@ runs and Dask's own threads), which a busy machine inflates much less than wall 
 Every row's summary and history must equal the single process's bit for bit; the script exits
 with status 1 if not.
 
-The merge. :class:`~warpratchet.cluster.ShardedRun` is timed on the records of the whole ensemble
-cut into S = 1, 4, 16, ..., 1024 shards (the records of one shard, sliced: the merge sees the same
-numbers as from S workers). A least-squares line ``t(S) = a + b S`` gives the per-shard cost
-``b`` and the part that grows with the points ``a`` (``a / (points x rows)``: the cost per point
-and history row); the projection to 100 and 1,000 shards is ``a + b S`` at this ensemble's size
-(``a`` grows with the points, ``b`` does not). The merge does not include fetching the records
-from the workers: a Dask row's ``fetch_seconds`` is its wall time less the slowest shard's run
-and the merge (scheduling and transfer).
+The merge. :class:`~warpratchet.cluster.ShardedRun` is timed on a LocalCluster of 2 worker
+processes holding the records of the whole ensemble cut into S = 1, 4, 16, ..., 1024 shards (the
+records of one shard, sliced and scattered to the workers: the merge's tasks see the same numbers
+as from S shards' runs, and each merge must equal the single process bit for bit). A
+least-squares line ``t(S) = a + b S`` gives the per-shard cost ``b`` (the merge's tasks and
+their scheduling) and ``a`` (``a / (points x rows)``: the cost per point and history row); the
+projection to 100 and 1,000 shards is ``a + b S`` at this ensemble's size (``a`` grows with the
+points, ``b`` does not). ``gathered_bytes``: what the merge's tasks hand to the client. A Dask
+row's ``fetch_seconds`` is its wall time less the slowest shard's run and the merge
+(scheduling).
 
 Usage::
 
-    python benchmarks/cluster_scaling.py                  # 10^5 points x 2x10^4 steps, ~1 min on 2 cores
+    python benchmarks/cluster_scaling.py                  # 10^5 points x 2x10^4 steps, 2-3 min on 2 cores
     python benchmarks/cluster_scaling.py --json           # one JSON object on stdout
     python benchmarks/cluster_scaling.py --quick --json   # smoke test
 """
@@ -119,13 +121,26 @@ def main(argv: list[str] | None = None) -> int:
             }
         )  # fmt: skip
 
-    _log("merge: one record cut into S shards")
+    _log("merge: one record cut into S shards, on 2 worker processes")
     whole = run_shard(spec, 0, spec.points)
     merges = []
-    for shards in (1, 4, 16, 64, 256, 1024):
-        records = [_slice(whole, lo, hi) for lo, hi in shard_bounds(spec.points, shards)]
-        best = min(ShardedRun(spec, records, False).merge_seconds for _ in range(3))
-        merges.append({"shards": shards, "seconds": best})
+    with (
+        distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+            dashboard_address=None, silence_logs=logging.ERROR,
+        ) as cluster,
+        distributed.Client(cluster) as client,
+    ):  # fmt: skip
+        for shards in (1, 4, 16, 64, 256, 1024):
+            records = [_slice(whole, lo, hi) for lo, hi in shard_bounds(spec.points, shards)]
+            futures = client.scatter(records)
+            small = [dataclasses.replace(r, gain=None, stretch=None) for r in records]
+            merged = ShardedRun(spec, small, False, futures, client)
+            same = _exact(merged.summary(warn=False).as_dict(), merged.history) == reference
+            identical &= same
+            merges.append({"shards": shards, "seconds": merged.merge_seconds,
+                           "gathered_bytes": merged.gathered_bytes, "identical": same})  # fmt: skip
+            client.cancel(futures)
     s = np.array([m["shards"] for m in merges], dtype=float)
     t = np.array([m["seconds"] for m in merges])
     per_shard, base = np.polyfit(s, t, 1)
@@ -154,6 +169,7 @@ def main(argv: list[str] | None = None) -> int:
             )
         print(f"  2 workers vs 1: x{report['speedup_2_vs_1_workers']:.2f}")
         print(f"  merge: {base:.3f} s + {per_shard * 1e3:.3f} ms per shard")
+        print(f"  merge of 1024 shards: {merges[-1]['gathered_bytes']} B to the client")
         for n, v in report["merge_projected_seconds"].items():
             print(f"  merge at {n} shards: {v:.3f} s")
         print(f"  identical to the single process: {identical}")

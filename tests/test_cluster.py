@@ -362,3 +362,60 @@ def test_run_with_scheduler_for_a_human(capsys, cluster):
     out, err = capsys.readouterr()
     assert "300 points x 200 steps" in out and f"  3 shards on the cluster at {address}\n" in out
     assert f"connecting to the Dask scheduler at {address}" in err
+
+
+@pytest.fixture
+def small_blocks(monkeypatch):
+    """Blocks of 300 points for the summaries and variances (one machine's and the merge's alike):
+    an ensemble of 2000 points has 7 of them, and shards cut inside some."""
+    import warpratchet.history
+    import warpratchet.observables
+
+    monkeypatch.setattr(warpratchet.observables, "SUMMARY_CHUNK", 300)
+    monkeypatch.setattr(warpratchet.history, "SUMMARY_CHUNK", 300)
+
+
+@pytest.mark.parametrize("transport", [False, True])
+def test_a_merge_over_blocks_cut_by_the_shards_equals_the_single_machine(small_blocks, transport):
+    """The merge's tasks run here, over records (no cluster: the blocks' size is this process's)."""
+    reference = single_machine(transport)
+    for shards in (1, 2, 3, 7):
+        bounds = shard_bounds(SPEC.points, shards)
+        assert shards == 1 or any(lo % 300 for lo, _ in bounds)  # a block shared by two shards
+        merged = ShardedRun(SPEC, [run_shard(SPEC, lo, hi, transport) for lo, hi in bounds], transport)
+        check_merged(merged, reference, transport)
+
+
+def test_the_merge_gathers_numbers_per_block_and_row_not_per_point():
+    """What the merge's tasks hand to the client for 400 and 40000 points (one block) differs only
+    by the width of its integer counts, and is below one row of 40000 points' records."""
+    gathered = []
+    for points in (400, 40000):
+        spec = RunSpec(K=3.0, b1=0.1, b2=0.01, points=points, steps=300, seed=3, threads=1)
+        records = [run_shard(spec, lo, hi, True) for lo, hi in shard_bounds(points, 3)]
+        merged = ShardedRun(spec, records, True)
+        gathered.append(merged.gathered_bytes)
+    assert abs(gathered[1] - gathered[0]) < gathered[0] // 100 and gathered[1] < 16 * 40000
+
+
+def test_out_of_a_transport_run_holds_the_merged_transport_group(client, tmp_path):
+    from warpratchet import open_archive
+    from warpratchet.archive.verify import verify_archive
+
+    out = tmp_path / "run.h5"
+    run_sharded(SPEC, client, 3, transport=True, out=out)
+    whole = TransportEnsemble.sample(SPEC.params, SPEC.points, SPEC.init, SPEC.seed, threads=2)
+    whole.threshold, whole.threshold_rule = SPEC.threshold, SPEC.threshold_rule
+    whole.run(SPEC.steps, chunk_steps=SPEC.chunk_steps)
+    expected = whole.transport_state()
+    with open_archive(out) as arc:
+        rows = arc.transport
+        _, step, state = arc.checkpoint_with_transport()
+        features = arc.features
+    assert "transport" in features
+    assert rows["step"][-1] == SPEC.steps and np.array_equal(rows["counts"][-1], expected.counts)
+    assert step == SPEC.steps and np.array_equal(state.counts, expected.counts)
+    assert all(np.array_equal(state.carry[k], v) for k, v in expected.carry.items())
+    assert np.array_equal(state.spread_steps, expected.spread_steps)
+    assert exact(state.spread) == exact(expected.spread)
+    assert verify_archive(out)[0] == []

@@ -11,7 +11,10 @@
   field the concatenation, in global point order, of the same field of the shards' archives
   (their initial state, and the slot their last checkpoint is in). Nothing per point is copied;
   the shards' files must stay where they are, and their paths are stored relative to ``out``'s
-  folder, so the two move together.
+  folder, so the two move together;
+* with transport counting, ``/transport`` as a single machine's archive has it: its rows the sums
+  of the shards' rows, the checkpoint slot's counts and spread rows the merged ones (bit for bit
+  the single machine's), its carry per point virtual datasets over the shards'.
 """
 
 from __future__ import annotations
@@ -45,15 +48,54 @@ def _virtual(
     group: h5py.Group, name: str, sources: list[tuple[str, str, int, int]], fill: float | int
 ) -> None:
     """Replace ``group[name]`` by a virtual dataset over ``sources``: ``(file, dataset, lo, hi)``."""
-    dtype = np.int64 if name == "winding" else np.float64
+    dtype = group[name].dtype.type
+    attrs = {key: group[name].attrs[key] for key in ("units", "long_name") if key in group[name].attrs}
     points = sources[-1][3]
     virtual = h5py.VirtualLayout(shape=(points,), dtype=dtype)
     for path, dataset, lo, hi in sources:
         virtual[lo:hi] = h5py.VirtualSource(path, dataset, shape=(hi - lo,))
     del group[name]
     ds = group.create_virtual_dataset(name, virtual, fillvalue=dtype(fill))
-    units, long_name = describe(group.name.lstrip("/"), name)
-    ds.attrs["units"], ds.attrs["long_name"] = np.bytes_(units.encode()), np.bytes_(long_name.encode())
+    if not attrs:
+        units, long_name = describe(group.name.lstrip("/"), name)
+        attrs = {"units": np.bytes_(units.encode()), "long_name": np.bytes_(long_name.encode())}
+    ds.attrs.update(attrs)
+
+
+def _write_transport(
+    f: h5py.File, merged: Any, archives: list, relative: list, slots: list, bounds: list
+) -> None:
+    """``/transport`` as a :class:`~warpratchet.transport.TransportEnsemble`'s archive has it: its
+    rows the sums of the shards' rows (the shards end their chunks at the same steps), the
+    checkpoint slot's counts and spread rows the merged ones, its carry per point virtual datasets
+    over the shards' (:mod:`warpratchet.archive.transport`)."""
+    from .archive import transport as _transport
+    from .transport.histograms import CARRY_FIELDS
+
+    _transport.create(f, merged.points)
+    total = None
+    for path in archives:
+        with h5py.File(path, "r") as shard:
+            rows = _transport.read_rows(shard, path)
+        if total is None:
+            total = rows
+        elif np.array_equal(rows["step"], total["step"]):
+            total["counts"] = total["counts"] + rows["counts"]
+        else:
+            raise ValueError(f"{path}: its /transport rows are at other steps than the first shard's")
+    fill_rows(f["transport"], total, f["transport"]["rows"])
+    slot = f["transport"][SLOTS[0]]
+    slot["counts"].write_direct(np.ascontiguousarray(merged.counts, dtype=np.int64))
+    for name, values in (("spread_steps", merged.spread_steps), ("spread", merged.spread)):
+        slot[name].resize(len(values), axis=0)
+        if len(values):
+            slot[name].write_direct(np.ascontiguousarray(values))
+    for name in CARRY_FIELDS:
+        sources = [
+            (rel, f"/transport/{s}/{name}", lo, hi)
+            for rel, s, (lo, hi) in zip(relative, slots, bounds, strict=True)
+        ]
+        _virtual(slot, name, sources, 0)
 
 
 def _current_slot(path: str) -> str:
@@ -106,6 +148,8 @@ def write_merged(out: str | os.PathLike, merged: Any, workdir: str, bounds: list
         series = {name: [clocks.get(name, row.get(name)) for row in rows] for name in SERIES_FIELDS}
         fill_rows(f["series"], series, f[COUNTERS[FORMAT_VERSION]["series"]])
         write_history(f, merged.history)
+        if merged.transport:
+            _write_transport(f, merged, archives, relative, slots, bounds)
         set_counter(f["checkpoint"][SLOTS[0]]["step"], merged.step)
         set_counter(f["checkpoint"]["current"], 0)
 

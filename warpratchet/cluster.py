@@ -11,30 +11,35 @@ machine, for any number of shards:
   ensemble (:func:`warpratchet.sampling.sampled_chunks` with ``lo``, ``hi``): the same doubles,
   and each point's orbit and tangent are independent of the others (as they are of the thread
   count).
-* **Per-point records, reduced in the single machine's order.** The summary (Eq. An's mean over
-  the chaotic points and its standard error) and the history's variances are two-pass
-  reductions (means first, then deviations from them) whose order of additions follows the
-  ensemble's :data:`~warpratchet.observables.SUMMARY_CHUNK` blocks, not the shards'. Partial
-  sums per shard cannot reproduce them: a deviation from the mean depends on the global mean,
-  which no shard knows while it runs. So each shard records, at the run's common steps (the
-  history's rows, :func:`~warpratchet.history.history_steps`, which hold the transport spread's
-  steps), two doubles per point: the gain ``p_n - p_0`` and the stretch ``log|DM^n v0|``
-  (:class:`ShardRecord`). The merge runs the single machine's own reductions
-  (:func:`~warpratchet.observables.summarize`, :func:`~warpratchet.history.history_row`,
-  :func:`~warpratchet.transport.diffusion.spread_moments`) over the records in global order:
-  the FTLE is ``stretch / n`` and ``A_n`` is ``gain / n``, the very operations of
+* **Partial sums in the single machine's order.** The summary (Eq. An's mean over the chaotic
+  points and its standard error) and the history's variances are two-pass reductions (means
+  first, then deviations from them) over the :data:`~warpratchet.observables.SUMMARY_CHUNK`
+  blocks of the ensemble: NumPy's pairwise sum within a block, then the blocks' sums in order.
+  Each shard records, at the run's common steps (the history's rows,
+  :func:`~warpratchet.history.history_steps`, which hold the transport spread's steps), two
+  doubles per point, the gain ``p_n - p_0`` and the stretch ``log|DM^n v0|``
+  (:class:`ShardRecord`), and keeps them on its worker (or in its workdir). The merge then runs
+  two rounds of tasks where the records are: each shard reduces the blocks that lie wholly in
+  it (:func:`~warpratchet.observables.chunk_sums`), a block that two shards share is reduced by
+  a task handed the records of its points alone; the client adds the blocks' sums in order as
+  :func:`~warpratchet.observables.summarize` does, sends the means back, and the second round
+  sums the deviations (:func:`~warpratchet.observables.chunk_squares`). The FTLE is
+  ``stretch / n`` and ``A_n`` is ``gain / n``, the very operations of
   :func:`~warpratchet.observables.lyapunov` and :func:`~warpratchet.observables.acceleration`.
+  The spread of the momentum (:func:`~warpratchet.transport.diffusion.spread_moments`) sums
+  each group's column row after row: a chain of tasks, shard after shard, carries the column
+  sums on (:func:`_fold`), once for the means and once for the squared deviations.
   Counts (return times, flights, runs still open) are int64 sums and merge by addition; block
   gains are per point of a fixed subsample and merge by concatenation.
-* **No lockstep.** Shards never wait for each other: each runs to the end and hands back its
+* **No lockstep.** Shards never wait for each other: each runs to the end and keeps its
   records; the merge starts when all are in.
 
-Cost: a record is 16 bytes per point per row (about 40 rows at n = 120000). Without a workdir
-the worker holds them until the merge and Dask moves them to the client; with one (storage every
-worker and the client share) each row is a file, written as the shard passes its step and read
-by the merge, and a shard's memory is its state and one row. The merge holds one row of every
-shard at a time (16 bytes per point of the whole ensemble); ``benchmarks/cluster_scaling.py``
-measures its time.
+Cost: a record is 16 bytes per point per row (about 40 rows at n = 120000), on the shard's
+worker (with a workdir, storage every worker and the client share: a file per row, and a shard's
+memory is its state and one row). The client receives a few numbers per row and per block of
+2^20 points (:data:`MERGE_BYTES_PER_BLOCK`) and the spread's column sums: nothing per point.
+A block shared by two shards moves its points' records (16 B a point per row) between workers.
+``benchmarks/cluster_scaling.py`` measures the merge's time.
 """
 
 from __future__ import annotations
@@ -47,16 +52,18 @@ from typing import Any
 
 import numpy as np
 
+from . import observables as _obs
 from ._cluster_archive import shard_paths
 from .errors import ParameterError, ResourceError, check_count
 from .history import BLOCKS, History, block_steps, block_subsample, history_row, history_steps
 from .limits import format_bytes
-from .observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, Summary, lyapunov, momentum_gain, summarize
+from .observables import SUMMARY_BYTES_PER_POINT, Summary, lyapunov, momentum_gain
 from .runloop import Observer
 from .spec import RunSpec
 
 __all__ = [
     "check_merge",
+    "MERGE_BYTES_PER_BLOCK",
     "ShardRecord",
     "ShardedRun",
     "shard_bounds",
@@ -93,10 +100,14 @@ def _kind(transport: bool):
 def shard_bytes(spec: RunSpec, points: int, transport: bool = False, on_disk: bool = False) -> int:
     """Memory a shard of ``points`` points needs on its worker: the state (and transport's
     carry), one summary's working memory, and its records: 16 B per point per history row, or
-    with ``on_disk`` (records in a workdir) one row of them."""
-    rows = 1 if on_disk else len(history_steps(0, spec.steps))
+    with ``on_disk`` (records in a workdir) one row of them; and for the merge, a block of points
+    that shards share, whose records at every row one task holds (twice: the pieces and the row
+    they make)."""
+    every = len(history_steps(0, spec.steps))
+    rows = 1 if on_disk else every
     state = _kind(transport).bytes_per_point()
-    return points * (state + 16 * rows) + min(points, SUMMARY_CHUNK) * SUMMARY_BYTES_PER_POINT
+    shared = 2 * min(_ensemble_size(spec), _obs.SUMMARY_CHUNK) * 16 * every
+    return points * (state + 16 * rows) + min(points, _obs.SUMMARY_CHUNK) * SUMMARY_BYTES_PER_POINT + shared
 
 
 @dataclass
@@ -284,6 +295,13 @@ def run_shard(
     )  # fmt: skip
 
 
+def _without_rows(record: ShardRecord) -> ShardRecord:
+    """A Dask task: ``record`` without its rows of every point (what the merge's client keeps)."""
+    from dataclasses import replace
+
+    return replace(record, gain=None, stretch=None)
+
+
 def _point_state(gain: np.ndarray, stretch: np.ndarray) -> dict[str, np.ndarray]:
     """A state whose :func:`~warpratchet.observables.momentum_gain` is ``gain`` and whose
     :func:`~warpratchet.observables.lyapunov` at ``n`` is ``stretch / n``, bit for bit.
@@ -296,8 +314,155 @@ def _point_state(gain: np.ndarray, stretch: np.ndarray) -> dict[str, np.ndarray]
     return {"winding": gain, "q": zero, "p0": zero, "dx": one, "dp": zero, "log_stretch": stretch}
 
 
+def _chunks(points: int) -> list[tuple[int, int]]:
+    """``(lo, hi)`` of the :data:`~warpratchet.observables.SUMMARY_CHUNK` blocks of points that the
+    single machine's summaries and variances reduce one at a time."""
+    size = _obs.SUMMARY_CHUNK
+    return [(lo, min(points, lo + size)) for lo in range(0, max(points, 1), size)]
+
+
+def _chunk_values(gain: np.ndarray, stretch: np.ndarray, step: int):
+    """FTLE, ``A_n`` and ``p_n - p_0`` of a chunk's points from their records, by the single
+    machine's own functions (:func:`_point_state`)."""
+    state = _point_state(gain, stretch)
+    ftle, acc = _obs._per_point(state, step, 0, len(gain))
+    return ftle, acc, momentum_gain(state)
+
+
+def _chunk_pass(gain, stretch, step: int, limit: float, means) -> tuple:
+    """One chunk's part of a row: pass 1 (``means`` None) the summary's :func:`chunk_sums
+    <warpratchet.observables.chunk_sums>` and the gains' sum; pass 2 the :func:`chunk_squares
+    <warpratchet.observables.chunk_squares>` and the gains' squared deviations (History's
+    ``var_dp_all``, :func:`warpratchet.history._variance`)."""
+    ftle, acc, dp = _chunk_values(gain, stretch, step)
+    if means is None:
+        return (*_obs.chunk_sums(ftle, acc, limit), float(np.add.reduce(dp)))
+    a_mean, ftle_mean, dp_mean = means
+    d = dp - dp_mean
+    return (*_obs.chunk_squares(ftle, acc, limit, a_mean, ftle_mean), float(np.add.reduce(d * d)))
+
+
+def _shard_pass(record: ShardRecord, rows: list, chunks: list, means: dict | None) -> dict:
+    """A Dask task: the :func:`_chunk_pass` of every ``(index, lo, hi)`` of ``chunks`` (chunks wholly
+    in ``record``'s points) at every ``(k, step, limit)`` of ``rows``; keys ``(k, index)``."""
+    parts = {}
+    for k, step, limit in rows:
+        gain, stretch = record.row(k)
+        for c, lo, hi in chunks:
+            a, b = lo - record.lo, hi - record.lo
+            parts[k, c] = _chunk_pass(
+                gain[a:b], stretch[a:b], step, limit, None if means is None else means[k]
+            )
+    return parts
+
+
+def _raw(record: ShardRecord, rows: list, lo: int, hi: int) -> list:
+    """A Dask task: the records of points ``lo <= i < hi`` (within ``record``) at each of ``rows``."""
+    out = []
+    for k, _, _ in rows:
+        gain, stretch = record.row(k)
+        out.append(
+            (gain[lo - record.lo : hi - record.lo].copy(), stretch[lo - record.lo : hi - record.lo].copy())
+        )
+    return out
+
+
+def _boundary_pass(rows: list, c: int, means: dict | None, *pieces: list) -> dict:
+    """A Dask task: :func:`_chunk_pass` of chunk ``c``, whose points lie in several shards
+    (``pieces``: their :func:`_raw` records, in order)."""
+    parts = {}
+    for j, (k, step, limit) in enumerate(rows):
+        gain = np.concatenate([p[j][0] for p in pieces])
+        stretch = np.concatenate([p[j][1] for p in pieces])
+        parts[k, c] = _chunk_pass(gain, stretch, step, limit, None if means is None else means[k])
+    return parts
+
+
+def _fold_into(acc: np.ndarray, started: np.ndarray, columns: slice, values: np.ndarray) -> None:
+    """One row of NumPy's column sum: ``acc + values`` where a column has begun, else ``values``."""
+    acc[columns] = np.where(started[columns], acc[columns] + values, values)
+    started[columns] = True
+
+
+def _fold(acc: np.ndarray, started: np.ndarray, values: np.ndarray, lo: int, tail: int | None) -> None:
+    """Continue the column sums ``acc`` (:func:`~warpratchet.transport.diffusion.spread_moments`'
+    ``np.add.reduce(..., axis=0)`` of the points laid out ``(points / G, G)``) with points
+    ``lo, lo + 1, ...`` (``values``): NumPy adds row after row there, so the sums of a shard go on
+    from those of the shards before it, one elementwise addition per point as on one machine.
+    ``tail``: with the last shard, the ensemble's size, whose last row is padded with +0.0."""
+    groups = acc.shape[0]
+    i = 0
+    off = lo % groups
+    if off and len(values):
+        i = min(groups - off, len(values))
+        _fold_into(acc, started, slice(off, off + i), values[:i])
+    full = (len(values) - i) // groups
+    if full:
+        block = values[i : i + full * groups].reshape(full, groups)
+        if not started.all():
+            _fold_into(acc, started, slice(0, groups), block[0])
+            block = block[1:]
+        if len(block):
+            acc[:] = np.add.reduce(np.concatenate([acc[None], block]), axis=0)
+        i += full * groups
+    if i < len(values):
+        _fold_into(acc, started, slice(0, len(values) - i), values[i:])
+    if tail is not None and tail % groups:
+        _fold_into(acc, started, slice(tail % groups, groups), np.zeros(groups - tail % groups))
+
+
+def _spread_link(record: ShardRecord, rows: list, carried: tuple | None, points: int, means) -> tuple:
+    """A Dask task, one link of a chain over the shards in order: the spread's column sums at each
+    ``(k, step, limit)`` of ``rows`` carried on over ``record``'s points: with ``means`` None the
+    chaotic points' counts and gains, else their squared deviations from ``means`` (shape
+    ``(rows, G)``), by :func:`~warpratchet.transport.diffusion.spread_moments`' own elementwise code."""
+    from .transport.diffusion import _chaotic_gains
+    from .transport.fits import GROUPS
+
+    if carried is None:
+        carried = (np.zeros((len(rows), GROUPS)), np.zeros((len(rows), GROUPS), bool),
+                   np.zeros((len(rows), GROUPS), np.int64))  # fmt: skip
+    acc, started, counts = (x.copy() for x in carried)
+    m = record.hi - record.lo
+    columns = (record.lo + np.arange(m)) % GROUPS
+    for j, (k, step, limit) in enumerate(rows):
+        gain, stretch = record.row(k)
+        gains, mask = np.zeros(m), np.zeros(m, dtype=bool)
+        _chaotic_gains(_point_state(gain, stretch), step, limit, gains, mask, None, 0, m)
+        if means is None:
+            counts[j] += np.bincount(columns[mask], minlength=GROUPS)
+        else:
+            np.copyto(gains, (gains - means[j][columns]) ** 2, where=mask)
+        _fold(acc[j], started[j], gains, record.lo, points if record.hi == points else None)
+    return acc, started, counts
+
+
+class _Cluster:
+    """Runs the merge's tasks: on a Dask client over the shards' futures, or here over records."""
+
+    def __init__(self, sources: list, client: Any = None) -> None:
+        self.sources, self.client = sources, client
+        self.gathered_bytes = 0
+
+    def submit(self, fn, *args):
+        if self.client is None:
+            return fn(*args)
+        return self.client.submit(fn, *args, pure=False)
+
+    def gather(self, items: list) -> list:
+        import pickle
+
+        results = items if self.client is None else self.client.gather(items)
+        self.gathered_bytes += sum(len(pickle.dumps(r, protocol=5)) for r in results)
+        return results
+
+
 class ShardedRun:
     """The merged result of :func:`run_sharded`: what ``warpratchet run`` reports, bit for bit.
+
+    The merge (module docstring) runs as tasks where the shards' records are: its client receives a
+    few numbers per row and per :data:`~warpratchet.observables.SUMMARY_CHUNK` block of points, and
+    the spread's column sums, never a record of every point.
 
     Attributes
     ----------
@@ -314,9 +479,14 @@ class ShardedRun:
         The merge's part of it.
     shard_seconds : list of float
         Each shard's time in its run (on its worker).
+    gathered_bytes : int
+        What the merge's tasks handed to this process (pickled).
     """
 
-    def __init__(self, spec: RunSpec, records: list[ShardRecord], transport: bool) -> None:
+    def __init__(
+        self, spec: RunSpec, records: list[ShardRecord], transport: bool, sources: list | None = None,
+        client: Any = None,
+    ) -> None:  # fmt: skip
         start = time.perf_counter()
         self.spec = spec
         self.params = spec.params
@@ -332,30 +502,68 @@ class ShardedRun:
         self.shard_seconds = [r.seconds for r in records]
         self._steps = [int(n) for n in records[0].steps]
         self._summaries: dict[tuple, Summary] = {}
-        self.history = self._history()
+        cluster = _Cluster(records if sources is None else sources, client)
+        self.history = self._history(cluster)
         if transport:
-            self._transport = self._merge_transport()
+            self._transport = self._merge_transport(cluster)
+        self.gathered_bytes = cluster.gathered_bytes
         self.merge_seconds = time.perf_counter() - start
         self.seconds = math.nan
 
-    def _state(self, step: int) -> dict[str, np.ndarray]:
-        """Every point's record at ``step``, in global order."""
-        k = self._steps.index(step)
-        rows = [r.row(k) for r in self._records]
-        return _point_state(np.concatenate([g for g, _ in rows]), np.concatenate([s for _, s in rows]))
+    def _limit(self, step: int, threshold: float | None, rule: str) -> float:
+        return _obs.lyapunov_threshold(step, rule) if threshold is None else threshold
 
-    def _history(self) -> History:
+    def _passes(self, cluster: _Cluster, rows: list, means: dict | None) -> dict:
+        """One pass of the summaries and variances over every chunk: per shard, a task over its
+        whole chunks; per chunk that shards share, a task over its points' records."""
+        tasks = []
+        bounds = [(r.lo, r.hi) for r in self._records]
+        for c, (lo, hi) in enumerate(_chunks(self.points)):
+            inside = [k for k, (a, b) in enumerate(bounds) if a < hi and lo < b]
+            if len(inside) > 1:
+                pieces = [cluster.submit(_raw, cluster.sources[k], rows, max(lo, bounds[k][0]),
+                                         min(hi, bounds[k][1])) for k in inside]  # fmt: skip
+                tasks.append(cluster.submit(_boundary_pass, rows, c, means, *pieces))
+        for k, (a, b) in enumerate(bounds):
+            whole = [(c, lo, hi) for c, (lo, hi) in enumerate(_chunks(self.points)) if a <= lo and hi <= b]
+            if whole:
+                tasks.append(cluster.submit(_shard_pass, cluster.sources[k], rows, whole, means))
+        parts: dict = {}
+        for result in cluster.gather(tasks):
+            parts.update(result)
+        return parts
+
+    def _history(self, cluster: _Cluster) -> History:
         spec = self.spec
+        n = self.points
+        chunks = range(len(_chunks(n)))
+        rows_in = [
+            (k, step, self._limit(step, spec.threshold, spec.threshold_rule))
+            for k, step in enumerate(self._steps)
+        ]
+        first = self._passes(cluster, rows_in, None)
+        means = {}
+        for k, _, _ in rows_in:
+            ones = [first[k, c] for c in chunks]
+            a_mean, ftle_mean = _obs.summary_means([p[:5] for p in ones])
+            means[k] = (a_mean, ftle_mean, math.fsum(p[5] for p in ones) / n)
+        second = self._passes(cluster, rows_in, means)
         rows: dict[str, list] = {}
-        for step in self._steps:
-            state = self._state(step)
-            summary = summarize(state, step, spec.threshold, spec.threshold_rule)
+        for k, step, limit in rows_in:
+            ones = [first[k, c][:5] for c in chunks]
+            twos = [second[k, c][:3] for c in chunks] if _obs.needs_squares(ones) else []
+            summary = _obs.summary_from_sums(step, limit, n, ones, twos)
             self._summaries[(step, spec.threshold, spec.threshold_rule)] = summary
-            for name, value in history_row(state, summary).items():
+            squares = 0.0
+            for c in chunks:  # History's var_dp_all: the chunks' squares added in order
+                squares += second[k, c][3]
+            row = history_row({"p0": np.empty(0)}, summary)
+            row["var_dp_all"] = squares / (n - 1) if n >= 2 else math.nan
+            for name, value in row.items():
                 rows.setdefault(name, []).append(value)
-        first = self._records[0]
+        first_record = self._records[0]
         block_rows = {
-            "block_step": first.block_steps,
+            "block_step": first_record.block_steps,
             "block_gain": list(np.concatenate([r.block_gain for r in self._records], axis=1)),
             "block_ftle": list(np.concatenate([r.block_ftle for r in self._records], axis=1)),
         }
@@ -373,21 +581,23 @@ class ShardedRun:
         step: int | None = None,
     ) -> Summary:
         """The summary at the last step (:meth:`Ensemble.summary <warpratchet.ensemble.Ensemble.summary>`),
-        or at ``step``, one of the history's row steps."""
+        or at ``step``, one of the history's row steps, with the run's threshold (or rule)."""
         step = self.step if step is None else step
         if step not in self._steps:
             raise ValueError(f"step = {step} is not one of the steps the shards recorded: {self._steps}")
         key = (step, threshold, rule)
         result = self._summaries.get(key)
         if result is None:
-            result = summarize(self._state(step), step, threshold, rule)
-            self._summaries[key] = result
+            raise ValueError(
+                f"threshold = {threshold}, rule = {rule}: the merge summarised the run's own "
+                f"(threshold = {self.spec.threshold}, rule = {self.spec.threshold_rule})"
+            )
         if warn:
             result.warn()
         return result
 
-    def _merge_transport(self) -> dict:
-        from .transport.diffusion import spread_moments, spread_steps
+    def _merge_transport(self, cluster: _Cluster) -> dict:
+        from .transport.diffusion import spread_steps
         from .transport.fits import GROUPS, diffusion_fit, pooled_variance
         from .transport.histograms import Histograms
         from .transport.report import transport_report
@@ -395,10 +605,24 @@ class ShardedRun:
         counts = sum(r.counts for r in self._records)
         still_open = sum(r.open_counts for r in self._records)
         steps = spread_steps(0, self.step)
+        self.counts = counts
         spec = self.spec
-        moments = np.array(
-            [spread_moments(self._state(n), n, spec.threshold, spec.threshold_rule) for n in steps]
-        ).reshape(len(steps), GROUPS, 3)
+        rows = [(self._steps.index(n), n, self._limit(n, spec.threshold, spec.threshold_rule)) for n in steps]
+        moments = np.zeros((len(steps), GROUPS, 3))
+        if steps:
+            totals = None
+            for source in cluster.sources:
+                totals = cluster.submit(_spread_link, source, rows, totals, self.points, None)
+            total, _, count = cluster.gather([totals])[0]
+            count = count.astype(np.float64)
+            mean = np.divide(total, count, out=np.zeros_like(total), where=count > 0)
+            squares = None
+            for source in cluster.sources:
+                squares = cluster.submit(_spread_link, source, rows, squares, self.points, mean)
+            m2 = cluster.gather([squares])[0][0]
+            moments = np.stack([count, mean, m2], axis=2)
+        # the transport state's counts and spread rows, as a TransportEnsemble's own
+        self.spread_steps, self.spread = np.array(steps, dtype=np.int64), moments
         var = np.array([pooled_variance(m) for m in moments], dtype=np.float64)
         fit = diffusion_fit(
             np.array(steps, dtype=np.int64), var, moments.transpose(1, 0, 2) if len(steps) else None
@@ -432,16 +656,23 @@ def _worker_memory(client: Any) -> dict[str, int]:
     return limits
 
 
-def check_merge(points: int, transport: bool = False) -> None:
-    """ResourceError, before any work, if this machine cannot hold the merge: one row of every
-    point's records (16 B a point), with ``transport`` the spread's gains and mask (9 B a point,
-    :func:`~warpratchet.transport.diffusion.spread_moments`), and one summary's working memory."""
-    from .limits import check_memory
+#: What the merge's client holds per history row and per block of points: the two passes' partial
+#: sums as Python numbers in dicts, generously.
+MERGE_BYTES_PER_BLOCK = 1024
 
-    per_point = 16 + (9 if transport else 0)
-    summary = min(points, SUMMARY_CHUNK) * SUMMARY_BYTES_PER_POINT
-    check_memory(f"points = {points} (the merge of a sharded run)", per_point * points + summary,
-                 f"{per_point} B per point and {format_bytes(summary)} to summarise them")  # fmt: skip
+
+def check_merge(points: int, transport: bool = False, rows: int = 64) -> None:
+    """ResourceError, before any work, if this machine cannot hold the merge: the two passes'
+    partial sums of every :data:`~warpratchet.observables.SUMMARY_CHUNK` block of points at each
+    of ``rows`` rows (:data:`MERGE_BYTES_PER_BLOCK`), and with ``transport`` the spread's column
+    sums; nothing per point."""
+    from .limits import check_memory
+    from .transport.fits import GROUPS
+
+    blocks = len(_chunks(points))
+    needed = rows * (blocks * MERGE_BYTES_PER_BLOCK + (3 * GROUPS * 8 if transport else 0))
+    check_memory(f"points = {points} (the merge of a sharded run)", needed,
+                 f"{MERGE_BYTES_PER_BLOCK} B per row for each of {blocks} blocks of points")  # fmt: skip
 
 
 def _check_workers(
@@ -555,7 +786,7 @@ def run_sharded(
             shards = max(1, len(client.scheduler_info()["workers"]))
         bounds = shard_bounds(points, min(check_count("shards", shards, 1, points), points))
         _check_workers(client, spec, bounds, transport, workdir is not None)
-        check_merge(points, transport)
+        check_merge(points, transport, len(history_steps(0, spec.steps)))
         if workdir is not None:
             workdir = _claim_workdir(workdir, spec, bounds, transport)
         start = time.perf_counter()
@@ -571,6 +802,7 @@ def run_sharded(
 
         records: dict[int, ShardRecord] = {}
         index = {future.key: k for k, future in enumerate(futures)}
+        # the records stay where they are; this process receives each shard's counts and block gains
         bar = ProgressBar("shards", disable=not progress, unit="shard")
         bar.open(len(bounds))
         try:
@@ -578,7 +810,7 @@ def run_sharded(
             for future in distributed.as_completed(futures):
                 k = index[future.key]
                 try:
-                    records[k] = future.result()
+                    records[k] = client.submit(_without_rows, future, pure=False).result()
                 except Exception as exc:
                     lo, hi = bounds[k]
                     why = f"{type(exc).__name__}: {exc}"
@@ -586,12 +818,12 @@ def run_sharded(
                         f"shard {k} of {len(bounds)} (points {lo}..{hi - 1}) failed: {why}"
                     ) from exc
                 bar.advance()
+            records = [records[k] for k in range(len(bounds))]
+            merged = ShardedRun(spec, records, transport, futures, client)
+            merged.seconds = time.perf_counter() - start
         finally:
             bar.close()
             client.cancel(futures)
-        records = [records[k] for k in range(len(bounds))]
-        merged = ShardedRun(spec, records, transport)
-        merged.seconds = time.perf_counter() - start
         if out is not None:
             from ._cluster_archive import write_merged
 

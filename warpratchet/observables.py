@@ -247,22 +247,6 @@ def mean_stderr(values: np.ndarray) -> tuple[float, float]:
 SUMMARY_CHUNK = 1 << 20
 
 
-class _Sums:
-    """Partial reductions of one quantity over chunks: NumPy's pairwise sum within each chunk,
-    then NumPy's sum of the chunk sums (one chunk: exactly NumPy's sum of the whole array)."""
-
-    def __init__(self) -> None:
-        self.parts: list[np.float64] = []
-
-    def add(self, values: np.ndarray) -> None:
-        self.parts.append(np.add.reduce(values))
-
-    def total(self) -> np.float64:
-        if len(self.parts) == 1:
-            return self.parts[0]
-        return np.add.reduce(np.array(self.parts, dtype=np.float64))
-
-
 def _per_point(
     state: dict[str, np.ndarray],
     step: int,
@@ -339,54 +323,99 @@ def summarize(
     # One chunk: keep its per-point values for the second pass instead of computing them again.
     kept = {}
     known = ftle  # the caller's FTLE (the loops below name each chunk's ftle)
-    sum_a, sum_ftle = _Sums(), _Sums()
-    chaotic_points = n_ambiguous = 0
-    ftle_min = math.inf
+    first = []
     for lo, hi in bounds:
         ftle, acc = _per_point(state, step, lo, hi, known, gain)
-        for values, name, why in (
-            (ftle, "FTLE", "the tangent overflowed float64"),
-            (acc, "A_n", "x, q, winding or p0 is not finite"),
-        ):
-            if not np.all(np.isfinite(values)):
-                bad = int(np.count_nonzero(~np.isfinite(values)))
-                raise NonFiniteStateError(
-                    f"{bad} of {values.size} points have a non-finite {name} ({why}): "
-                    "a state that is not finite has no summary"
-                )
-        mask = ftle > threshold
-        chaotic_ftle = ftle[mask]
-        sum_a.add(acc[mask])
-        sum_ftle.add(chaotic_ftle)
-        chaotic_points += chaotic_ftle.size
-        if chaotic_ftle.size:
-            ftle_min = min(ftle_min, float(chaotic_ftle.min()))
-        n_ambiguous += int(np.count_nonzero(_ambiguous(ftle, threshold)))
+        first.append(chunk_sums(ftle, acc, threshold))
         if len(bounds) == 1:
             kept[lo] = ftle, acc
-    # Means as numpy.mean forms them (sum / count), then the second pass: squared deviations
-    # (numpy.std, ddof 1) and the ambiguous points' deviations from A.
-    a_mean = float(sum_a.total() / chaotic_points) if chaotic_points else math.nan
-    ftle_mean = float(sum_ftle.total() / chaotic_points) if chaotic_points else math.nan
-    squares_a, squares_ftle, deviations = _Sums(), _Sums(), _Sums()
-    if chaotic_points > 1 or n_ambiguous:
+    second = []
+    a_mean, ftle_mean = summary_means(first)
+    if needs_squares(first):
         for lo, hi in bounds:
             ftle, acc = kept.get(lo) or _per_point(state, step, lo, hi, known, gain)
-            mask = ftle > threshold
-            d_a = acc[mask] - a_mean
-            d_ftle = ftle[mask] - ftle_mean
-            squares_a.add(d_a * d_a)
-            squares_ftle.add(d_ftle * d_ftle)
-            deviations.add(np.abs(acc[_ambiguous(ftle, threshold)] - a_mean))
+            second.append(chunk_squares(ftle, acc, threshold, a_mean, ftle_mean))
+    return summary_from_sums(step, threshold, n, first, second)
+
+
+def chunk_sums(ftle: np.ndarray, acc: np.ndarray, threshold: float) -> tuple:
+    """The first pass of :func:`summarize` over one chunk of points (their FTLE and ``A_n``):
+    ``(sum of A_n, sum of FTLE, count, least FTLE)`` over the chaotic points, and the count of
+    ambiguous points. Sums are NumPy's pairwise sums of the chunk's chaotic points.
+
+    Raises NonFiniteStateError if a value is not finite."""
+    for values, name, why in (
+        (ftle, "FTLE", "the tangent overflowed float64"),
+        (acc, "A_n", "x, q, winding or p0 is not finite"),
+    ):
+        if not np.all(np.isfinite(values)):
+            bad = int(np.count_nonzero(~np.isfinite(values)))
+            raise NonFiniteStateError(
+                f"{bad} of {values.size} points have a non-finite {name} ({why}): "
+                "a state that is not finite has no summary"
+            )
+    mask = ftle > threshold
+    chaotic_ftle = ftle[mask]
+    least = float(chaotic_ftle.min()) if chaotic_ftle.size else math.inf
+    ambiguous = int(np.count_nonzero(_ambiguous(ftle, threshold)))
+    return np.add.reduce(acc[mask]), np.add.reduce(chaotic_ftle), int(chaotic_ftle.size), least, ambiguous
+
+
+def _total(parts: list) -> np.float64:
+    """NumPy's sum of chunk sums (one chunk: that chunk's sum itself)."""
+    if len(parts) == 1:
+        return parts[0]
+    return np.add.reduce(np.array(parts, dtype=np.float64))
+
+
+def summary_means(first: list[tuple]) -> tuple[float, float]:
+    """Mean ``A_n`` and mean FTLE over the chaotic points from the :func:`chunk_sums` of every chunk
+    in order, formed as ``numpy.mean`` forms them (sum / count)."""
+    chaotic_points = sum(part[2] for part in first)
+    if not chaotic_points:
+        return math.nan, math.nan
+    return (float(_total([p[0] for p in first]) / chaotic_points),
+            float(_total([p[1] for p in first]) / chaotic_points))  # fmt: skip
+
+
+def needs_squares(first: list[tuple]) -> bool:
+    """Whether :func:`summary_from_sums` reads a second pass (:func:`chunk_squares`)."""
+    return sum(p[2] for p in first) > 1 or sum(p[4] for p in first) > 0
+
+
+def chunk_squares(
+    ftle: np.ndarray, acc: np.ndarray, threshold: float, a_mean: float, ftle_mean: float
+) -> tuple:
+    """The second pass of :func:`summarize` over one chunk: the sums of squared deviations of the
+    chaotic points' ``A_n`` and FTLE from their means (:func:`summary_means`), and of the
+    ambiguous points' ``|A_n - A|``."""
+    mask = ftle > threshold
+    d_a = acc[mask] - a_mean
+    d_ftle = ftle[mask] - ftle_mean
+    deviations = np.abs(acc[_ambiguous(ftle, threshold)] - a_mean)
+    return np.add.reduce(d_a * d_a), np.add.reduce(d_ftle * d_ftle), np.add.reduce(deviations)
+
+
+def summary_from_sums(
+    step: int, threshold: float, n: int, first: list[tuple], second: list[tuple]
+) -> Summary:
+    """The :class:`Summary` of ``n`` points from the :func:`chunk_sums` and :func:`chunk_squares`
+    of their chunks in order (``second`` may be empty unless :func:`needs_squares`): the numbers of
+    :func:`summarize` bit for bit, since it is how :func:`summarize` forms them."""
+    chaotic_points = sum(p[2] for p in first)
+    n_ambiguous = sum(p[4] for p in first)
+    ftle_min = min((p[3] for p in first), default=math.inf)
+    a_mean, ftle_mean = summary_means(first)
     if chaotic_points > 1:
-        a_err = float(np.sqrt(squares_a.total() / (chaotic_points - 1)) / math.sqrt(chaotic_points))
-        ftle_std = float(np.sqrt(squares_ftle.total() / (chaotic_points - 1)))
+        squares_a = _total([p[0] for p in second])
+        a_err = float(np.sqrt(squares_a / (chaotic_points - 1)) / math.sqrt(chaotic_points))
+        ftle_std = float(np.sqrt(_total([p[1] for p in second]) / (chaotic_points - 1)))
     else:
         a_err = ftle_std = math.nan
     if n_ambiguous == 0:
         bound = 0.0
     elif chaotic_points > n_ambiguous:
-        bound = float(deviations.total()) / (chaotic_points - n_ambiguous)
+        bound = float(_total([p[2] for p in second])) / (chaotic_points - n_ambiguous)
     else:
         bound = math.inf
     reliable, reason = reliability(chaotic_points, a_err, bound)
