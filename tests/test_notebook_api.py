@@ -39,9 +39,9 @@ def test_a_summary_is_computed_once_per_step_for_every_sink(tmp_path, monkeypatc
 
     calls = []
 
-    def spy(state, step, threshold=None, rule="strict", ftle=None):
+    def spy(state, step, threshold=None, rule="strict", ftle=None, gain=None):
         calls.append((step, threshold, rule))
-        return summarize(state, step, threshold, rule, ftle)
+        return summarize(state, step, threshold, rule, ftle, gain)
 
     monkeypatch.setattr(warpratchet.ensemble, "summarize", spy)
     argv = run_argv("--points", "500", "--steps", "800", "--json", "--quiet", "--out", str(tmp_path / "a.h5"))

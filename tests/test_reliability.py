@@ -43,9 +43,11 @@ def test_a_long_run_is_reliable_and_says_nothing_more(capsys):
     assert main(argv) == 0
     out = capsys.readouterr().out
     lines = out.strip().splitlines()
-    # The header, A, sigma, the convergence verdict (issue 15) and the speed: no warning line.
-    assert "UNRELIABLE" not in out and len(lines) == 5
-    assert lines[3].startswith("  convergence :") and lines[3].endswith(": converged")
+    # The header, A, the closed form beside it, sigma, the convergence verdict and the speed: no
+    # warning line.
+    assert "UNRELIABLE" not in out and len(lines) == 6
+    assert lines[2].startswith("  theory      =") and lines[4].startswith("  convergence :")
+    assert lines[4].endswith(": converged")
     assert main([*argv, "--json"]) == 0
     report = json.loads(capsys.readouterr().out)
     assert report["reliable"] is True and report["reason"] == ""

@@ -194,11 +194,21 @@ def test_history_rows_beside_spread_rows_are_a_plain_runs_bit_for_bit(monkeypatc
     lent = []
     summarize = observables.summarize
 
-    def spy(state, step, threshold=None, rule="strict", ftle=None):
+    def spy(state, step, threshold=None, rule="strict", ftle=None, gain=None):
         lent.append((step, ftle is not None))
-        return summarize(state, step, threshold, rule, ftle)
+        return summarize(state, step, threshold, rule, ftle, gain)
 
     monkeypatch.setattr("warpratchet.ensemble.summarize", spy)  # Ensemble.summary's
+    known = TransportEnsemble.known_ftle
+    spread_lent = []
+
+    def known_spy(self, step):
+        ftle = known(self, step)
+        if ftle is not None:
+            spread_lent.append(step)
+        return ftle
+
+    monkeypatch.setattr(TransportEnsemble, "known_ftle", known_spy)
     rows = []
     for cls in (Ensemble, TransportEnsemble):
         lent.clear()
@@ -206,8 +216,10 @@ def test_history_rows_beside_spread_rows_are_a_plain_runs_bit_for_bit(monkeypatc
         history = History()
         ens.run(400, [history])
         rows.append(history.as_dict())
-        used = {step for step, given in lent if given}
-        assert used == (set(spread_steps(0, 400)) if cls is TransportEnsemble else set())
+        # On 2 threads every row's summary is lent its FTLE: computed on the run's threads, or,
+        # at a spread row's step, the spread's own.
+        assert lent and all(given for _, given in lent)
+    assert set(spread_lent) == set(spread_steps(0, 400))
     assert rows[0].keys() == rows[1].keys()
     for name in rows[0]:
         assert np.asarray(rows[0][name]).tobytes() == np.asarray(rows[1][name]).tobytes(), name
