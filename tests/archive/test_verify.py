@@ -24,7 +24,7 @@ from warpratchet.cli import main
 
 PARAMS = MapParams(3.0, 0.1, 0.01)
 SCHEDULE = {"snapshot_every": 200, "snapshot_points": 40, "checkpoint_every": 400, "chunk_steps": 100}
-DATA = os.path.join(os.path.dirname(__file__), "data")
+DATA = os.path.join(os.path.dirname(__file__), os.pardir, "data")
 
 
 def fresh() -> Ensemble:
