@@ -3,11 +3,10 @@
 import json
 import math
 import subprocess
-import sys
 
 import numpy as np
 import pytest
-from support import error_line
+from support import cli, error_line
 
 from warpratchet import theory
 from warpratchet.cli import main
@@ -33,9 +32,7 @@ THEORY_KEYS = {"K", "b1", "b2", "l1", "l2", "c", "domain", "S_L", "S_R", "S_C", 
 
 
 def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "warpratchet.cli", *args], capture_output=True, text=True, timeout=300
-    )
+    return cli(*args, timeout=300)
 
 
 def test_theory_json(capsys):

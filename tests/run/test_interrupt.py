@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 import pytest
-from support import MAP_FLAGS, same_state
+from support import MAP_FLAGS, launch, same_state
 
 from warpratchet import Ensemble, MapParams, Observer
 from warpratchet.history import block_steps, history_steps
@@ -99,12 +99,7 @@ def test_sigint_during_cli_run_is_one_line_and_exit_130(tmp_path, archived):
     argv = ["run", *MAP_FLAGS, "--points", "40000", "--steps", "100000000", "--chunk-steps", "1000"]
     path = tmp_path / ("run.h5" if archived else "run.rrd")
     argv += ["--out" if archived else "--rerun", str(path)]
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "warpratchet.cli", *argv],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    proc = launch(*argv)
     _interrupt_when(proc, path.exists)
     stdout, stderr = proc.communicate(timeout=120)
     assert proc.returncode == 130, stderr
