@@ -7,7 +7,7 @@ run and a last line with the pass count, and exits 1 if any run failed.
 Usage::
 
     .venv/bin/python scripts/loaded_suite.py --runs 10
-    .venv/bin/python scripts/loaded_suite.py --runs 3 -- tests/test_interrupt.py -k sigterm
+    .venv/bin/python scripts/loaded_suite.py --runs 3 -- tests/run/test_interrupt.py -k sigterm
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ from pathlib import Path
 
 #: The tests that start processes or send signals (the ones a loaded machine breaks first).
 DEFAULT_TESTS = [
-    "tests/test_interrupt.py",
-    "tests/test_checkpoint_cadence.py",
-    "tests/test_hangs_and_refusals.py",
+    "tests/run/test_interrupt.py",
+    "tests/run/test_checkpoint_cadence.py",
+    "tests/cli/test_hangs_and_refusals.py",
 ]
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -16,6 +16,7 @@ import h5py
 import numpy as np
 
 from warpratchet import Observer
+from warpratchet.archive import Archive, ArchiveError
 from warpratchet.ensemble import STATE_FIELDS
 from warpratchet.history import BLOCK_FIELDS, HISTORY_FIELDS, History
 
@@ -30,11 +31,44 @@ def run_argv(*flags: str) -> list[str]:
     return ["run", *MAP_FLAGS, *flags]
 
 
-def cli(*args: str, timeout: float = 900) -> subprocess.CompletedProcess:
-    """``warpratchet ARGS`` in a fresh process (``python -m warpratchet.cli``), output captured."""
+def cli(
+    *args: str, timeout: float = 900, module: str = "warpratchet.cli", **options
+) -> subprocess.CompletedProcess:
+    """``warpratchet ARGS`` in a fresh process (``python -m warpratchet.cli``; another command line
+    with ``module``, e.g. ``viz``), run to its end, output captured as text; ``options`` (``env``,
+    ``cwd``) go to :func:`subprocess.run`."""
     return subprocess.run(
-        [sys.executable, "-m", "warpratchet.cli", *args], capture_output=True, text=True, timeout=timeout
+        [sys.executable, "-m", module, *args], capture_output=True, text=True, timeout=timeout, **options
     )
+
+
+def launch(*args: str, module: str = "warpratchet.cli", text: bool = True, **options) -> subprocess.Popen:
+    """``warpratchet ARGS`` started in a fresh process (as :func:`cli`) and left running, its stdout
+    and stderr piped (as text unless ``text`` is false): for tests that interrupt, kill or read it."""
+    return subprocess.Popen(
+        [sys.executable, "-m", module, *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=text,
+        **options,
+    )
+
+
+def flip_bit(src, dst, offset: int, bit: int) -> None:
+    """A copy of file ``src`` at ``dst`` with bit ``bit`` of byte ``offset`` flipped."""
+    data = bytearray(open(src, "rb").read())
+    data[offset] ^= 1 << bit
+    open(dst, "wb").write(bytes(data))
+
+
+def archive_rows(path) -> int:
+    """The valid rows of the archive at ``path`` as a concurrent reader sees them (no lock taken);
+    0 while it does not exist or cannot be read yet."""
+    try:
+        with Archive(path, locking=False) as arc:
+            return arc.rows
+    except (FileNotFoundError, ArchiveError, OSError):
+        return 0
 
 
 def quick_benchmark(name: str, timeout: float = 900) -> dict:

@@ -26,7 +26,7 @@ Pure NumPy: no Warp, no I/O. Two questions about the ensemble mean ``A_n`` of Eq
 
    Why not the two textbook choices. *Plain batch means over time* (ensemble-mean velocity in
    ``B`` time blocks treated as independent) cuts sticking episodes at block edges and ignores the
-   correlation between blocks: on the heavy-tailed test process of ``tests/test_convergence.py``
+   correlation between blocks: on the heavy-tailed test process of ``tests/core/test_convergence.py``
    (Pareto sticking times, ``gamma = 1.3-1.5``) it reports 0.41-0.55 of the true error. *A block
    bootstrap over orbits* (each orbit's whole history one block, which keeps every episode intact)
    is right in mean square but reproduces ``std / sqrt(N)``, and so fails in the same typical runs:

@@ -52,14 +52,14 @@ __all__ = [
 
 #: Most points of an ensemble (and of a census or a grid): Warp arrays have 32-bit shapes, and the
 #: kernels compute point indices up to ``n + INTERLEAVE - 1`` in 32-bit ints (the strided CUDA
-#: layout), so that must fit an int32 for any ``INTERLEAVE <= 64``. ``tests/test_limits.py``
+#: layout), so that must fit an int32 for any ``INTERLEAVE <= 64``. ``tests/core/test_limits.py``
 #: checks it against the kernels.
 MAX_POINTS = 2**31 - 64
 #: Largest global step: the kernels' step counter and every stored step are int64.
 MAX_STEP = 2**63 - 1
 FLOAT64_MAX = sys.float_info.max
 #: The kernels' renormalisation threshold and check interval (``warpratchet.kernels``: the kernels
-#: import Warp and this module must not; ``tests/test_limits.py`` checks that the values agree).
+#: import Warp and this module must not; ``tests/core/test_limits.py`` checks that the values agree).
 RENORM_THRESHOLD = 1.0e100
 RENORM_CHECK_EVERY = 8
 #: Largest growth factor per step ``g = 2 + K max |f'|`` (``2 + K max(l1, l2)`` for Eq. fx) whose

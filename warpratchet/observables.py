@@ -42,11 +42,11 @@ MIN_CHAOTIC_POINTS = 51
 #: Working memory of :func:`summarize` per point of a chunk (:data:`SUMMARY_CHUNK` points at a
 #: time), bytes, beyond the state it reads: the FTLE and ``A_n`` (8 B each) and the temporaries of
 #: computing them (at most two more at a time), the chaotic subsets (8 B each, all points at
-#: worst), the masks (1 B each). ``tests/test_limits.py`` measures the peak (tracemalloc) with
+#: worst), the masks (1 B each). ``tests/core/test_limits.py`` measures the peak (tracemalloc) with
 #: every point chaotic and checks it stays below this.
 SUMMARY_BYTES_PER_POINT = 64
 #: Points whose FTLE lies within this factor of the threshold, on either side, are "ambiguous":
-#: their classification could go either way (tests/test_statistics.py uses the same band).
+#: their classification could go either way (tests/core/test_statistics.py uses the same band).
 AMBIGUITY_FACTOR = 3.0
 
 

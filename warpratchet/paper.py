@@ -85,7 +85,7 @@ class Rotation:
 
 def _K_of_alpha(alpha: float) -> float:
     # Eq. (eig); the same expression as warpratchet.theory.K_from_alpha (a pure module may not
-    # import theory), and tests/test_paper.py checks that the two agree bit for bit.
+    # import theory), and tests/core/test_paper.py checks that the two agree bit for bit.
     return 2.0 - 2.0 * math.cos(alpha)
 
 

@@ -62,7 +62,7 @@ class Variant:
     used with the CPU body (e.g. a ``wp.func_native`` on whole lane vectors; ``cpu_load`` and
     ``cpu_store`` for a variant whose CPU hooks keep accumulators of their own type and defer
     work to the end of the launch); they must give bitwise the same results,
-    which ``tests/test_kernels.py`` checks for the package's variants (add a new one there).
+    which ``tests/kernels/test_kernels.py`` checks for the package's variants (add a new one there).
     """
 
     name: str

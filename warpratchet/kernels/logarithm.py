@@ -6,7 +6,7 @@ another. The chaos indicators (:mod:`.indicators`) take a logarithm of every poi
 so they use this one, written three times operation by operation: the CPU body's lane vectors
 (:data:`FDLOG_VECTOR`, C++), the portable body (:func:`fdlog`, plain Warp, what CUDA runs) and
 NumPy (:func:`warpratchet.reference.fdlog`). The three are bitwise equal by construction
-(``tests/test_logarithm.py`` checks it on a wide sample and the special values).
+(``tests/kernels/test_logarithm.py`` checks it on a wide sample and the special values).
 
 Algorithm: fdlibm's ``__ieee754_log`` (Sun Microsystems 1993, ``e_log.c``, as in FreeBSD's msun),
 with its coefficients, in one branch-free form:
@@ -138,7 +138,7 @@ _JOIN = ", ".join(str(i) for i in range(16))
 #: ``vgetexppd`` and ``vgetmantpd`` (exact, subnormals included) and skips the special values'
 #: selects: ~34 vector operations per 8 lanes instead of ~50. ``chunk`` is the general form (bit
 #: fields, every special value), used for every chunk of a call with a zero, infinite, negative or
-#: NaN lane, and on CPUs without AVX-512; both give the same bits (``tests/test_logarithm.py``
+#: NaN lane, and on CPUs without AVX-512; both give the same bits (``tests/kernels/test_logarithm.py``
 #: checks each path). The measurements are in ``benchmarks/README.md``.
 FDLOG_VECTOR = f"""
 struct fdlog {{

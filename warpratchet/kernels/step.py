@@ -33,7 +33,7 @@ Two bodies, one arithmetic:
   choice a pair of masked blends, and no libm call sits in the step (only ``log`` in a renormalisation,
   once per ~600 steps for a chaotic point). It is only ever compiled for the CPU.
 
-``tests/test_kernels.py`` checks that both give bitwise the same states on the CPU.
+``tests/kernels/test_kernels.py`` checks that both give bitwise the same states on the CPU.
 """
 
 import linecache

@@ -16,7 +16,7 @@ lengths in ``[2^k, 2^(k+1))``, :data:`BINS` bins), exact int64 counts (issue 16)
 
 Two implementations, one count: the portable hooks (plain Warp, a lane at a time; what CUDA
 runs) and the CPU hooks of :mod:`.transport_cpu` (codes per step, decoded in blocks as byte
-vectors), which ``tests/test_transport.py`` checks against each other and against the NumPy twin
+vectors), which ``tests/analyses/test_transport.py`` checks against each other and against the NumPy twin
 :mod:`warpratchet.transport.twin`.
 
 The three per-point values are the carry state: runs still open at the end of a launch continue
@@ -221,7 +221,7 @@ class _TransportKernel(AdvanceKernel):
         """:meth:`AdvanceKernel.launch` with ``extra`` = the carry arrays and the launch's histogram
         array (:data:`CARRY_FIELDS`, then ``(3 * BINS,)`` int64, added to). ``block_rows``: the CPU
         hooks' largest block of rows decoded at once: 8, or 1 (row by row, the path of a CPU
-        without GFNI; the same counts, both paths checked by ``tests/test_transport.py``).
+        without GFNI; the same counts, both paths checked by ``tests/analyses/test_transport.py``).
         ``scratch``: the CPU hooks' scratch array (default: one of this launch's own; a test gives
         two concurrent launches one scratch to check that the guard sees it).
 

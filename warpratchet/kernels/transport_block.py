@@ -5,7 +5,7 @@ by row loop (it uses that snippet's trackers, tallies and helpers): each full bl
 transposed into bit planes (one byte per lane, bit i = row i), and its visits to B and gain
 changes are found with bit tricks on the planes. Without AVX-512 and GFNI it compiles to nothing
 and every row goes through the loop; a launch with ``block_rows=1`` takes that path on any CPU,
-so the tests check both against the NumPy twin, count for count (``tests/test_transport.py``).
+so the tests check both against the NumPy twin, count for count (``tests/analyses/test_transport.py``).
 
 Why 8 rows, not 16 (measured, 10^6 points at K = 3, 1 thread, launches of 200 steps, one process,
 the block size chosen per launch): 16-row blocks (two 8-row transposes interleaved into 16 bits a

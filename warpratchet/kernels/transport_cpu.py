@@ -20,7 +20,7 @@ Trackers: ``age`` (steps since the last visit to B), ``flen`` (steps of the run 
 bytes kept at most :data:`CAP` after each block, the excess carried exactly in int64 (``*_extra``);
 ``fcode`` is the gain code of the run in progress. The carry arrays hold absolute global steps;
 the first block of a thread converts them (the buffer knows its global steps) and ``store``
-converts back, as lane vectors. Every count equals the portable hooks' (``tests/test_transport.py``).
+converts back, as lane vectors. Every count equals the portable hooks' (``tests/analyses/test_transport.py``).
 
 Where the state lives: the buffer and the trackers in the launch's scratch array
 (:data:`SCRATCH_BYTES`, shared by the launch's threads, which Warp runs one after the other on

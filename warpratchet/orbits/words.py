@@ -1,7 +1,7 @@
 """All ``30^m`` itineraries at once, in float64: the brute force the tree search replaces.
 
 For cost comparisons (``benchmarks/orbits.py``) and as the prefilter of the brute-force check in
-``tests/test_orbits.py``; nothing here is exact, and :func:`~warpratchet.orbits.enumerate_orbits`
+``tests/analyses/test_orbits.py``; nothing here is exact, and :func:`~warpratchet.orbits.enumerate_orbits`
 does not use it. Pure: no Warp, no I/O.
 """
 

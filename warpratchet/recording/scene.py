@@ -61,7 +61,7 @@ RERUN_MISSING = "rerun-sdk is not installed: pip install 'warpratchet[rerun]'"
 
 #: Viridis (matplotlib's perceptually uniform map) at 33 equally spaced nodes, sRGB 0-255.
 #: Linear interpolation between the nodes, rounded to integers, stays within 3.5/255 of
-#: matplotlib's 256-entry table (checked in tests/test_recording.py), so no matplotlib import is
+#: matplotlib's 256-entry table (checked in tests/recording/test_recording.py), so no matplotlib import is
 #: needed here.
 VIRIDIS = np.array(
     [

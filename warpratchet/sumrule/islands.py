@@ -50,7 +50,7 @@ CHECKPOINTS = 8
 #: Host memory of :func:`classify` per point, bytes (besides the ensemble's arrays): the initial
 #: points (16 B), the momentum record (``CHECKPOINTS`` x 8 B), a copy of the state per checkpoint
 #: (56 B), the per-point results (~70 B) and :func:`identify_nu`'s temporaries (three records at a
-#: time). ``tests/test_limits.py`` measures the peak and checks it stays below this.
+#: time). ``tests/core/test_limits.py`` measures the peak and checks it stays below this.
 CLASSIFY_HOST_BYTES_PER_POINT = 448
 
 

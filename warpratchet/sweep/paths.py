@@ -34,7 +34,7 @@ __all__ = [
 #: Host memory of a sweep per point, bytes: its parameters (a MapParams and a row of the parameter
 #: table), its summary row (a dict of Python numbers, ~1.3 kB kept), and the transient copies of
 #: the rows (the list returned, their JSON text): a sweep's peak grows by ~4.6 kB per point.
-#: ``tests/test_limits.py`` measures that growth and checks it stays below this.
+#: ``tests/core/test_limits.py`` measures that growth and checks it stays below this.
 SWEEP_BYTES_PER_POINT = 8192
 
 

@@ -15,7 +15,7 @@ import numpy as np
 
 __all__ = ["BINS", "HISTOGRAMS", "CARRY_FIELDS", "bin_of", "edges", "Histograms", "open_runs"]
 
-#: Number of bins; the kernel's (kept equal by tests/test_transport.py, without importing Warp here).
+#: Number of bins; the kernel's (kept equal by tests/analyses/test_transport.py, without importing Warp here).
 BINS = 64
 #: Histogram names, in the kernel's order.
 HISTOGRAMS = ("return_times", "flights_plus", "flights_minus")

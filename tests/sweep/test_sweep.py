@@ -276,7 +276,7 @@ def test_cli_json_rows_and_resume(tmp_path, capsys):
 
 # -- benchmark smoke test -------------------------------------------------------------------------
 def test_sweep_scaling_benchmark_runs_every_executor_with_identical_rows():
-    script = os.path.join(os.path.dirname(__file__), os.pardir, "benchmarks", "sweep_scaling.py")
+    script = os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "benchmarks", "sweep_scaling.py")
     done = subprocess.run(
         [
             sys.executable,

@@ -251,7 +251,7 @@ def test_incompatible_format_version_is_refused(tmp_path, archived):
 
 # -- the documented layout is the written one -----------------------------------------------------
 def test_docs_match_the_file(archived, tmp_path):
-    # the /transport group's names (feature "transport"): tests/test_transport_cli.py
+    # the /transport group's names (feature "transport"): tests/cli/test_transport_cli.py
     documented = {name for name in documented_names() if not name.startswith("/transport")}
     assert len(documented) > 60  # the table was found and parsed
     optional = documented_optional()

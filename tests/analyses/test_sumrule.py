@@ -221,7 +221,7 @@ def test_classifier_benchmark_quick(capsys):
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "classifiers.py"
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "classifiers.py"
     spec = importlib.util.spec_from_file_location("classifiers_benchmark", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

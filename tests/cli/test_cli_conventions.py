@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 
 import pytest
-from support import MAP_FLAGS, cli
+from support import MAP_FLAGS, cli, launch
 
 import warpratchet
 from warpratchet.cli import EXAMPLES, SUBCOMMANDS, build_parser, main
@@ -103,13 +103,7 @@ def test_the_command_starts_without_importing_warp():
 def test_a_reader_that_leaves_early_is_not_an_error():
     """``warpratchet orbits ... | head``: the pipe closes while the command still writes; it stops
     quietly with the shell's status for SIGPIPE (141), no error line, no traceback."""
-    import subprocess
-
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "warpratchet.cli", "orbits", *MAP_FLAGS, "--period", "6", "--json"],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-    )
+    proc = launch("orbits", *MAP_FLAGS, "--period", "6", "--json", text=False)
     assert proc.stdout.read(10) == b'{"K": 3.0,'
     proc.stdout.close()  # ~300 kB are still to come: the next writes meet a closed pipe
     assert proc.wait(timeout=900) == 141

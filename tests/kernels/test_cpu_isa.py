@@ -13,6 +13,7 @@ import subprocess
 import sys
 
 import pytest
+import support
 
 from warpratchet.kernels import runtime
 
@@ -81,9 +82,9 @@ def test_the_avx512_path_compiles_and_runs_where_the_cpu_has_it():
         assert "which this CPU cannot run" in done.stdout
         # and the CLI says so in one line, exit status 2 (the user's setting), no traceback
         env = {**os.environ, runtime.CPU_ISA_VARIABLE: "avx512"}
-        argv = [sys.executable, "-m", "warpratchet", "run", "--K", "3", "--b1", "0.1", "--b2", "0.01"]
+        argv = ["run", "--K", "3", "--b1", "0.1", "--b2", "0.01"]
         argv += ["--points", "10", "--steps", "10", "--quiet"]
-        cli = subprocess.run(argv, env=env, capture_output=True, text=True, timeout=900)
+        cli = support.cli(*argv, module="warpratchet", env=env, timeout=900)
         assert cli.returncode == 2 and cli.stdout == ""
         lines = cli.stderr.strip().splitlines()
         assert len(lines) == 1 and "which this CPU cannot run" in lines[0], cli.stderr

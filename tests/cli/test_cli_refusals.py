@@ -3,7 +3,7 @@
 Every row is a command line that must end with exit status 2, nothing on stdout and one error line
 (after a short usage line when argparse refuses a flag while parsing) that contains the row's
 needle: the value, and the allowed range or the reason. Rows that fail later, while the command
-runs, are in the tests of that command (e.g. tests/test_inputs.py).
+runs, are in the tests of that command (e.g. tests/cli/test_inputs.py).
 
 The rows of ``run`` are issue 13's: 2^32 steps in one chunk ran 0 steps (a 32-bit count) and
 reported success (item 1); the other values were accepted (item 7).

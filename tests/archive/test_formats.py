@@ -26,7 +26,7 @@ from warpratchet.history import history_steps
 from warpratchet.sweep import read_sweep
 from warpratchet.sweep.records import ADDED_COLUMNS
 
-DATA = Path(__file__).resolve().parent / "data"
+DATA = Path(__file__).resolve().parents[1] / "data"
 ARCHIVE, SWEEP = DATA / "archive_v1.h5", DATA / "sweep_v1.h5"
 ARCHIVE_V2, SWEEP_V2 = DATA / "archive_v2.h5", DATA / "sweep_v2.h5"
 ARCHIVE_V2_0 = DATA / "archive_v2_0.h5"

@@ -405,7 +405,7 @@ def test_missing_rerun_is_a_clear_error(tmp_path, monkeypatch, capsys):
 
 def test_overhead_benchmark_quick_smoke():
     """``benchmarks/recording_overhead.py --quick --json`` runs and recording leaves results bitwise equal."""
-    script = Path(__file__).resolve().parents[1] / "benchmarks" / "recording_overhead.py"
+    script = Path(__file__).resolve().parents[2] / "benchmarks" / "recording_overhead.py"
     done = subprocess.run([sys.executable, str(script), "--quick", "--json"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr[-2000:]
     report = json.loads(done.stdout)

@@ -189,7 +189,7 @@ def test_children_of_the_suite_take_ctrl_c_even_when_it_was_started_ignoring_it(
         capture_output=True,
         text=True,
         timeout=900,
-        cwd=os.path.dirname(__file__),
+        cwd=os.path.dirname(os.path.dirname(__file__)),
     )
     assert done.stdout.split() == ["False", "True"], done.stderr
 

@@ -20,7 +20,7 @@ from warpratchet.limits import MAX_POINTS
 from warpratchet.params import MapParams
 from warpratchet.spec import CLASSIFIERS, MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS, SweepSpec
 
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).parent.parent / "data"
 
 
 def test_the_acceptance_spec_round_trips_through_json():

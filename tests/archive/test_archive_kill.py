@@ -25,13 +25,12 @@ import os
 import shutil
 import signal
 import subprocess
-import sys
 import time
 
 import h5py
 import numpy as np
 import pytest
-from support import Capture, same_history, same_state
+from support import Capture, launch, same_history, same_state
 
 from warpratchet import Ensemble, MapParams
 from warpratchet._h5 import LIBVER, PAGE_SIZE, open_h5
@@ -91,12 +90,7 @@ def _launch(path: str) -> subprocess.Popen:
             "--snapshot-every", str(SNAPSHOT), "--snapshot-points", str(SNAPSHOT_POINTS),
             "--out", path, *common,
         ]  # fmt: skip
-    return subprocess.Popen(
-        [sys.executable, "-m", "warpratchet.cli", *args],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    return launch(*args)
 
 
 def _peek(path: str) -> tuple[int, int] | None:

@@ -12,6 +12,7 @@ import time
 import h5py
 import numpy as np
 import pytest
+from support import flip_bit
 
 from warpratchet import sweep as sweep_module
 from warpratchet.cli import main
@@ -28,12 +29,6 @@ def finished(tmp_path_factory):
     path = tmp_path_factory.mktemp("sweep") / "sweep.h5"
     rows = run_sweep(POINTS, SPEC, out=path, progress=False)
     return path, rows
-
-
-def _flip_bit(src, dst, offset: int, bit: int) -> None:
-    data = bytearray(open(src, "rb").read())
-    data[offset] ^= 1 << bit
-    open(dst, "wb").write(bytes(data))
 
 
 def test_every_dataset_is_checksummed_and_described(finished):
@@ -81,7 +76,7 @@ def test_flipped_bits_never_change_a_reported_number(finished, tmp_path):
     outcomes = {"error": 0, "same": 0}
     for i, offset in enumerate(offsets):
         damaged = tmp_path / "flip.h5"
-        _flip_bit(path, damaged, offset, i % 8)
+        flip_bit(path, damaged, offset, i % 8)
         try:
             got = read_sweep(damaged)
         except FileFormatError:

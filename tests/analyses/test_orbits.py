@@ -424,7 +424,7 @@ def test_benchmark_quick(capsys):
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "orbits.py"
+    path = Path(__file__).resolve().parents[2] / "benchmarks" / "orbits.py"
     spec = importlib.util.spec_from_file_location("orbits_benchmark", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

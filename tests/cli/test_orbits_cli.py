@@ -55,7 +55,7 @@ def _cost_tables() -> dict[MapParams, dict[int, tuple[int, float]]]:
 
     Tree nodes are exact on any machine; the seconds are the page's measurement.
     """
-    text = (Path(__file__).resolve().parents[1] / "docs" / "orbits.md").read_text()
+    text = (Path(__file__).resolve().parents[2] / "docs" / "orbits.md").read_text()
     tables = {}
     for K, b1, b2, rows in re.findall(
         r"^K = ([\d.]+), b1 = ([\d.]+), b2 = ([\d.]+):\n\n((?:\|.*\n)+)", text, re.M

@@ -13,7 +13,7 @@ import pytest
 
 from warpratchet.sweep import read_sweep
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _viz(*args: str, cwd: Path = ROOT, package: str = "viz") -> subprocess.CompletedProcess:

@@ -15,7 +15,7 @@ import warnings
 import h5py
 import numpy as np
 import pytest
-from support import cli, same_state
+from support import cli, flip_bit, same_state
 
 from warpratchet import Ensemble, MapParams, Observer, open_archive
 from warpratchet.archive import ArchiveError, ArchiveSink, ArchiveWarning, NonFiniteStateError, run_to
@@ -24,7 +24,7 @@ from warpratchet.cli import main
 
 PARAMS = MapParams(3.0, 0.1, 0.01)
 SCHEDULE = {"snapshot_every": 200, "snapshot_points": 40, "checkpoint_every": 400, "chunk_steps": 100}
-DATA = os.path.join(os.path.dirname(__file__), "data")
+DATA = os.path.join(os.path.dirname(__file__), os.pardir, "data")
 
 
 def fresh() -> Ensemble:
@@ -38,12 +38,6 @@ def archived(tmp_path_factory):
     with ArchiveSink(path, ens, **SCHEDULE) as sink:
         ens.run(1000, [sink], chunk_steps=sink.chunk_steps)
     return path
-
-
-def _flip_bit(src, dst, offset: int, bit: int) -> None:
-    data = bytearray(open(src, "rb").read())
-    data[offset] ^= 1 << bit
-    open(dst, "wb").write(bytes(data))
 
 
 def _everything(path):
@@ -116,7 +110,7 @@ def test_single_bit_flips_are_detected_or_harmless(archived, tmp_path):
         )
     for i, offset in enumerate(offsets):
         damaged = tmp_path / "flip.h5"
-        _flip_bit(archived, damaged, offset, i % 8)
+        flip_bit(archived, damaged, offset, i % 8)
         census["tried"] += 1
         problems = []
         try:
@@ -154,7 +148,7 @@ def test_resume_skips_a_damaged_snapshot_and_initial_state(archived, tmp_path):
         snap = f["snapshots/x"].id.get_chunk_info(1).byte_offset  # the snapshot at step 400
         initial = f["initial/x"].id.get_chunk_info(0).byte_offset
     for offset in (snap + 20, initial + 20):
-        _flip_bit(path, tmp_path / "tmp.h5", offset, 3)
+        flip_bit(path, tmp_path / "tmp.h5", offset, 3)
         os.replace(tmp_path / "tmp.h5", path)
     problems, _ = verify_archive(path)
     assert any("/snapshots/x" in p for p in problems) and any("/initial/x" in p for p in problems)
@@ -175,7 +169,7 @@ def test_cli_resume_says_what_it_skipped(archived, tmp_path):
     shutil.copy(archived, path)
     with h5py.File(path, "r") as f:
         offset = f["series/A"].id.get_chunk_info(0).byte_offset
-    _flip_bit(path, tmp_path / "tmp.h5", offset + 9, 0)
+    flip_bit(path, tmp_path / "tmp.h5", offset + 9, 0)
     os.replace(tmp_path / "tmp.h5", path)
     proc = cli("resume", str(path), "--steps", "1100", "--quiet", "--json")
     assert proc.returncode == 0, proc.stderr
