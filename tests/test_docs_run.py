@@ -52,6 +52,10 @@ def shrink(command: str) -> str:
     command = re.sub(rf"--(points|steps) {number}", lambda m: f"--{m[1]} {_scaled(m[1], int(m[2]))}", command)
     command = re.sub(rf"\b(points|steps)={number}", lambda m: f"{m[1]}={_scaled(m[1], int(m[2]))}", command)
     command = re.sub(rf"\.run\({number}", lambda m: f".run({_scaled('steps', int(m[1]))}", command)
+    # A subsample no larger than the shrunk ensemble (the run refuses more snapshot points than points).
+    command = re.sub(
+        rf"--snapshot-points {number}", lambda m: f"--snapshot-points {_scaled('points', int(m[1]))}", command
+    )
     command = re.sub(r"(\d[\d.]*:\d[\d.]*:)(\d+)\b", lambda m: f"{m[1]}{min(int(m[2]), 5)}", command)
     command = re.sub(
         r"(np\.linspace\([^,]+,[^,]+, )(\d+)\)", lambda m: f"{m[1]}{min(int(m[2]), 5)})", command

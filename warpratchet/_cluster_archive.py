@@ -34,6 +34,7 @@ from .archive.history_group import write_history
 from .archive.names import COUNTERS, FORMAT_VERSION, SERIES_FIELDS, SLOTS, describe
 from .archive.rows import fill_rows, set_counter
 from .ensemble import STATE_FIELDS
+from .spec import CHECKPOINT_SECONDS
 
 __all__ = ["write_merged"]
 
@@ -114,8 +115,8 @@ def write_merged(out: str | os.PathLike, merged: Any, workdir: str, bounds: list
     spec = merged.spec
     settings = layout.run_settings(
         merged, threshold=spec.threshold, threshold_rule=spec.threshold_rule,
-        chunk_steps=spec.chunk_steps or spec.steps, checkpoint_every=spec.steps, snapshot_every=0,
-        snapshot_points=0,
+        chunk_steps=spec.chunk_steps or spec.steps, checkpoint_every=spec.steps,
+        checkpoint_seconds=CHECKPOINT_SECONDS, snapshot_every=0, snapshot_points=0,
     )  # fmt: skip
     fills = {name: np.broadcast_to(layout.FILL[name], (merged.points,)) for name in STATE_FIELDS}
     contents = {
