@@ -10,7 +10,7 @@ For each thread count, alternately (the order flips every round):
   (one launch per thread).
 
 Both are timed from sampling to the end (wall and process CPU seconds). The ratio kernel / run of
-each round is the run's throughput as a fraction of the kernel's (issue 27 asks for >= 0.9); the
+each round is the run's throughput as a fraction of the kernel's (the target: >= 0.9); the
 medians over rounds are printed with their ranges, per wall and per CPU second. The run's reported
 A and Lyapunov exponent must equal the kernel-only ensemble's summary bit for bit (exit status 1
 if not).

@@ -1,4 +1,4 @@
-"""Stress test of issue 3's guarantee: SIGKILL an archive writer at random instants, read the file back.
+"""Stress test of the archive's guarantee: SIGKILL an archive writer at random instants, read the file back.
 
 A forked writer streams a small ensemble into an archive with short chunks (a series row every
 millisecond or so, a snapshot every 5 rows, a checkpoint every 40) and publishes, after each

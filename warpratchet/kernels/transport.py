@@ -2,7 +2,7 @@
 
 The orbit and tangent are bitwise those of ``advance_map`` (the same step loop); a hook after
 every step counts, per point, two kinds of events into log2-binned histograms (bin ``k`` holds
-lengths in ``[2^k, 2^(k+1))``, :data:`BINS` bins), exact int64 counts (issue 16):
+lengths in ``[2^k, 2^(k+1))``, :data:`BINS` bins), exact int64 counts:
 
 * **return times to B** (Eq. B): the gaps between consecutive global steps ``n`` at which ``x_n``
   lies in B. ``last_visit`` is the global step of the point's last visit (-1: none yet; the
