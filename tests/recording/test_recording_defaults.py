@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from rrd import cloud_frames, read_rrd, verify
 from support import MAP_FLAGS, run_argv
-from test_recording import cloud_frames, read_rrd, verify
 
 from warpratchet import Ensemble, MapParams
 from warpratchet.cli import main

@@ -187,7 +187,7 @@ def test_a_signal_to_the_cli_checkpoints_where_it_stops_and_the_same_command_con
 @needs_posix
 def test_a_recording_beside_the_archive_ends_at_the_step_reached(tmp_path):
     pytest.importorskip("rerun", reason="rerun-sdk 0.41 (the rerun extra) needs Python >= 3.11")
-    from test_recording import cloud_frames, read_rrd, verify
+    from rrd import cloud_frames, read_rrd, verify
 
     path, rrd = tmp_path / "run.h5", tmp_path / "run.rrd"
     proc = _cli(
