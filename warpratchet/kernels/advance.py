@@ -19,11 +19,12 @@ resumed, renormalises at the same steps and stays bitwise equal. One launch adva
 :data:`MAX_LAUNCH_STEPS` steps (the loop counter is 32-bit); :meth:`AdvanceKernel.launch`
 refuses more, and ``Ensemble`` splits longer chunks.
 
-A variant without per-step work (``one_point=True``: the plain map) also gets a third kernel,
-``point``, that runs one point per thread with the portable body's one-point functions; it is
-what a GPU runs. A GPU thread that holds :data:`INTERLEAVE` lanes keeps more state than its
-registers hold, so the lanes spill to local memory; one point per thread stays in registers
-(``benchmarks/README.md`` has the measurements). The CPU keeps its lane vectors.
+A variant without per-step work (``one_point=True``: the plain map, the indicators) also gets a
+third kernel, ``point``, that runs one point per thread with the portable body's one-point
+functions and the variant's one-point hooks; it is what a GPU runs. A GPU thread that holds
+:data:`INTERLEAVE` lanes keeps more state than its registers hold, so the lanes spill to local
+memory; one point per thread stays in registers (``benchmarks/README.md`` has the
+measurements). The CPU keeps its lane vectors.
 """
 
 from collections.abc import Sequence
@@ -58,6 +59,11 @@ class Variant:
         after_step(ref accumulators, ref Lanes, global_step: int64)   # or None: no per-step work
         after_check(ref accumulators, ref Lanes, check: int64)
 
+    ``point_load(arrays, i) -> accumulators``, ``point_after_check(accumulators, dx, dp,
+    log_stretch, check) -> accumulators`` and ``point_store(arrays, i, accumulators)``: the same
+    work for one point, whose accumulators are a struct of scalars (the one-point kernel's hooks;
+    a variant needs them for ``one_point=True``).
+
     ``cpu_after_step``, ``cpu_after_check``, ``cpu_load``, ``cpu_store``: optional replacements
     used with the CPU body (e.g. a ``wp.func_native`` on whole lane vectors; ``cpu_load`` and
     ``cpu_store`` for a variant whose CPU hooks keep accumulators of their own type and defer
@@ -76,6 +82,9 @@ class Variant:
     cpu_after_check: Any = None
     cpu_store: Any = None
     cpu_load: Any = None
+    point_load: Any = None
+    point_after_check: Any = None
+    point_store: Any = None
 
 
 @wp.func
@@ -134,18 +143,22 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
     return wp.kernel(advance, name=f"advance_{variant.name}", module=module)
 
 
-def _build_point(body: Body, module: str, options: dict) -> wp.Kernel:
-    """The plain map with one point per thread (thread ``i`` advances point ``i``), from the
-    portable ``body``'s one-point step and check."""
+def _build_point(variant: Variant, body: Body, module: str, options: dict) -> wp.Kernel:
+    """``variant`` with one point per thread (thread ``i`` advances point ``i``), from the
+    portable ``body``'s one-point step and check and the variant's one-point hooks."""
+    if variant.point_after_check is None:
+        raise ValueError(f"the {variant.name} variant has no one-point hooks")
     check_mask = wp.int64(RENORM_CHECK_EVERY - 1)
+    check_shift = wp.int64(RENORM_CHECK_EVERY.bit_length() - 1)
 
-    def advance_point(state: State, step0: wp.int64, steps: int, p: Coefficients):
+    def advance_point(state: State, extra: variant.arrays, step0: wp.int64, steps: int, p: Coefficients):
         i = wp.tid()
         x = state.x[i]
         q = state.q[i]
         dx = state.dx[i]
         dp = state.dp[i]
         log_stretch = state.log_stretch[i]
+        acc = wp.static(variant.point_load)(extra, i)
         w = wp.float64(0.0)
         global_step = step0
         for _s in range(steps):
@@ -153,15 +166,19 @@ def _build_point(body: Body, module: str, options: dict) -> wp.Kernel:
             global_step = global_step + wp.int64(1)
             if (global_step & wp.static(check_mask)) == wp.int64(0):
                 dx, dp, log_stretch = wp.static(body.point_renorm)(dx, dp, log_stretch)
+                acc = wp.static(variant.point_after_check)(
+                    acc, dx, dp, log_stretch, global_step >> wp.static(check_shift)
+                )
         state.x[i] = x
         state.q[i] = q
         state.dx[i] = dx
         state.dp[i] = dp
         state.log_stretch[i] = log_stretch
         state.winding[i] = state.winding[i] + wp.int64(w)
+        wp.static(variant.point_store)(extra, i, acc)
 
     wp.set_module_options(options, module)
-    return wp.kernel(advance_point, name="advance_map_point", module=module)
+    return wp.kernel(advance_point, name=f"advance_{variant.name}_point", module=module)
 
 
 class AdvanceKernel:
@@ -184,7 +201,9 @@ class AdvanceKernel:
         self.cpu = _build(variant, bodies[0], CPU_MODULE + module_suffix, CPU_MODULE_OPTIONS)
         self.portable = _build(variant, bodies[1], PORTABLE_MODULE + module_suffix, MODULE_OPTIONS)
         self.point = (
-            _build_point(bodies[1], PORTABLE_MODULE + module_suffix, MODULE_OPTIONS) if one_point else None
+            _build_point(variant, bodies[1], PORTABLE_MODULE + module_suffix, MODULE_OPTIONS)
+            if one_point
+            else None
         )
         self._forces: dict[str, AdvanceKernel] = {}
 
@@ -244,11 +263,8 @@ class AdvanceKernel:
         if not 0 <= step0 < 2**63 - steps:
             raise ValueError(f"step0 = {step0} is outside the allowed range 0 <= step0 < 2^63 - steps")
         body = self._body(device, body)
-        if body == "point":
-            arguments, dim = [_fill(State(), state), step0, steps], state[0].shape[0]
-        else:
-            arguments = [_fill(State(), state), _fill(self.variant.arrays(), extra), step0, steps]
-            dim = launch_dim(state[0].shape[0])
+        arguments = [_fill(State(), state), _fill(self.variant.arrays(), extra), step0, steps]
+        dim = state[0].shape[0] if body == "point" else launch_dim(state[0].shape[0])
         if body == "cpu":
             check_cpu_isa_runs()
         wp.launch(

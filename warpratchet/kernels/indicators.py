@@ -123,6 +123,43 @@ __builtin_memcpy(&acc.megno_ysum, &megno_ysum, sizeof(v_t));
 def _after_check_cpu(acc: wp.ref[_Accumulators], s: wp.ref[Lanes], check: wp.int64): ...
 
 
+@wp.struct
+class _PointAccumulators:
+    fli: wp.float64
+    megno_lsum: wp.float64
+    megno_ysum: wp.float64
+
+
+@wp.func
+def _point_load(arrays: _Arrays, i: int):
+    acc = _PointAccumulators()
+    acc.fli = arrays.fli[i]
+    acc.megno_lsum = arrays.megno_lsum[i]
+    acc.megno_ysum = arrays.megno_ysum[i]
+    return acc
+
+
+@wp.func
+def _point_after_check(
+    acc: _PointAccumulators, dx: wp.float64, dp: wp.float64, log_stretch: wp.float64, check: wp.int64
+):
+    # The operations of _after_check for one lane, in the same order (the same bits).
+    j = wp.float64(check)
+    big_l = log_stretch + wp.float64(0.5) * fdlog(dx * dx + dp * dp)
+    out = _PointAccumulators()
+    out.fli = wp.max(acc.fli, big_l)
+    out.megno_ysum = acc.megno_ysum + wp.float64(2.0) * big_l - wp.float64(2.0) * acc.megno_lsum / j
+    out.megno_lsum = acc.megno_lsum + big_l
+    return out
+
+
+@wp.func
+def _point_store(arrays: _Arrays, i: int, acc: _PointAccumulators):
+    arrays.fli[i] = acc.fli
+    arrays.megno_lsum[i] = acc.megno_lsum
+    arrays.megno_ysum[i] = acc.megno_ysum
+
+
 INDICATORS = Variant(
     "map_indicators",
     _Arrays,
@@ -132,7 +169,11 @@ INDICATORS = Variant(
     after_step=None,
     after_check=_after_check,
     cpu_after_check=_after_check_cpu,
+    point_load=_point_load,
+    point_after_check=_point_after_check,
+    point_store=_point_store,
 )
 
-#: ``advance_map`` plus the accumulators ``fli, megno_lsum, megno_ysum`` (module docstring).
-advance_map_indicators = advance_kernel(INDICATORS)
+#: ``advance_map`` plus the accumulators ``fli, megno_lsum, megno_ysum`` (module docstring);
+#: one point per thread off the CPU.
+advance_map_indicators = advance_kernel(INDICATORS, one_point=True)

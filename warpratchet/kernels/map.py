@@ -33,8 +33,36 @@ def _nothing(acc: wp.ref[_NoAccumulators], s: wp.ref[Lanes], counter: wp.int64):
     pass
 
 
+@wp.func
+def _point_load(arrays: _NoArrays, i: int):
+    return _NoAccumulators()
+
+
+@wp.func
+def _point_after_check(
+    acc: _NoAccumulators, dx: wp.float64, dp: wp.float64, log_stretch: wp.float64, check: wp.int64
+):
+    return acc
+
+
+@wp.func
+def _point_store(arrays: _NoArrays, i: int, acc: _NoAccumulators):
+    pass
+
+
 #: No per-step work: the hooks are empty and vanish when inlined.
-PLAIN = Variant("map", _NoArrays, _NoAccumulators, _load, _store, None, _nothing)
+PLAIN = Variant(
+    "map",
+    _NoArrays,
+    _NoAccumulators,
+    _load,
+    _store,
+    None,
+    _nothing,
+    point_load=_point_load,
+    point_after_check=_point_after_check,
+    point_store=_point_store,
+)
 
 #: Advance the state by ``steps`` iterations of Eq. (cpem) and of ``DM`` from global step ``step0``.
 advance_map = advance_kernel(PLAIN, one_point=True)
