@@ -43,7 +43,7 @@ from warpratchet.archive import (
     building,
     run_to,
 )
-from warpratchet.archive.layout import ROW_CHUNK
+from warpratchet.archive._format import ROW_CHUNK
 from warpratchet.ensemble import STATE_FIELDS
 from warpratchet.history import History
 

@@ -19,7 +19,7 @@ import pytest
 from support import MAP_FLAGS, cli
 
 from warpratchet import Ensemble, MapParams, open_archive, summarize
-from warpratchet.archive import ArchiveSink, layout, resume, rows, slots
+from warpratchet.archive import ArchiveSink, _format, resume, rows, slots
 from warpratchet.cli import main
 from warpratchet.sweep import file as sweep_file
 from warpratchet.sweep import read_sweep
@@ -148,7 +148,7 @@ def _enospc(*args, **kwargs):
 @pytest.mark.parametrize(
     ("where", "target", "name"),
     [
-        ("creation", layout, "create"),
+        ("creation", _format, "create"),
         ("series row", rows.Rows, "put"),
         ("checkpoint", slots, "sync_h5"),
     ],

@@ -8,7 +8,7 @@ name by name in ``docs/archive.md`` (format ``warpratchet-archive``, version
 
 One idea per module:
 
-* :mod:`.names`: what an archive contains (format and versions, names, units; the errors);
+* :mod:`._format`: what an archive contains (format and versions, names, units; the errors);
 * :mod:`.layout`: building it (settings attributes, every dataset up front);
 * :mod:`.rows`: appending rows behind a live counter;
 * :mod:`.building`: a file made under a temporary name and published atomically;
@@ -28,8 +28,7 @@ in :mod:`warpratchet._files`.
 """
 
 from .._files import SWMR_READ_ATTEMPTS
-from .chunking import CHECKPOINT_CHUNKS, CHECKPOINT_SECONDS, MIN_ARCHIVE_CHUNK_STEPS, run_to, schedule
-from .names import (
+from ._format import (
     FORMAT,
     FORMAT_VERSION,
     KNOWN_FEATURES,
@@ -40,6 +39,7 @@ from .names import (
     ArchiveWarning,
     NonFiniteStateError,
 )
+from .chunking import CHECKPOINT_CHUNKS, CHECKPOINT_SECONDS, MIN_ARCHIVE_CHUNK_STEPS, run_to, schedule
 from .reader import Archive, Snapshots, open_archive
 from .verify import verify_archive
 from .writer import ArchiveSink

@@ -2,7 +2,7 @@
 
 A new archive (:class:`~warpratchet.archive.writer.ArchiveSink`) and a rebuilt one
 (``ArchiveSink.resume``, :mod:`.reopen`) are both made here: the free space is checked first,
-the layout (:func:`.layout.create`) and any contents are written into ``.NAME.XXXX.tmp`` next
+the layout (:func:`._format.create`) and any contents are written into ``.NAME.XXXX.tmp`` next
 to the path, the caller binds the open file (SWMR mode, fsync), and only then does the file get
 its name (:func:`warpratchet._files.publish`). A failure (a full disk) leaves no temporary file
 and the old file, if any, untouched.
@@ -19,8 +19,8 @@ import h5py
 
 from .._files import abandon_h5, ensure_space, publish, storage_errors, temporary_beside
 from .._h5 import create_h5
-from . import layout
-from .names import ArchiveError
+from . import _format
+from ._format import ArchiveError
 
 __all__ = ["as_archive_error", "build_file"]
 
@@ -47,7 +47,7 @@ def build_file(
     """Create the layout under a temporary name, ``fill`` it, ``start`` it, publish it atomically.
 
     ``needed`` bytes must be free first; ``contents`` are the keyword arguments of
-    :func:`.layout.create`; ``start`` binds the open file to its writer (and leaves it open);
+    :func:`._format.create`; ``start`` binds the open file to its writer (and leaves it open);
     ``keep_mode`` keeps the permissions of the file at ``path`` (a rebuilt archive).
     """
     with storage_errors(path, "create"):
@@ -58,7 +58,7 @@ def build_file(
                 shutil.copymode(path, tmp)  # a rebuilt archive keeps the user's permissions
         f = create_h5(tmp)  # paged: a kill never tears a row chunk or a counter
         try:
-            layout.create(f, **contents)
+            _format.create(f, **contents)
             if fill is not None:
                 fill(f)
             start(f)

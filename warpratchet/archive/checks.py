@@ -7,15 +7,13 @@ Shared by the reader, the writer, ``resume`` and ``verify`` of :mod:`warpratchet
 from __future__ import annotations
 
 import contextlib
-import zlib
 from collections.abc import Iterator
-from typing import Any
 
 import h5py
 import numpy as np
 
 from .._h5verify import chunk_past_end, first_line, read_rows, refresh
-from .names import ArchiveError
+from ._format import TEXT_CHECKSUM, ArchiveError, text_checksum
 
 __all__ = [
     "reading",
@@ -25,14 +23,8 @@ __all__ = [
     "valid_rows",
     "nonfinite",
     "listed",
-    "TEXT_CHECKSUM",
-    "text_checksum",
     "check_text",
 ]
-
-#: The numeric attribute (in the checksummed object header) that seals a group's string
-#: attributes: their text lives in HDF5's global heap, which carries no checksum of its own.
-TEXT_CHECKSUM = "text_crc32"
 
 
 @contextlib.contextmanager
@@ -98,12 +90,6 @@ def nonfinite(state: dict[str, np.ndarray]) -> dict[str, int]:
 def listed(counts: dict[str, int]) -> str:
     """``{"dx": 766}`` as ``"766 dx"`` (several joined by commas)."""
     return ", ".join(f"{count} {field}" for field, count in counts.items())
-
-
-def text_checksum(attrs: dict[str, Any]) -> int:
-    """CRC-32 of the string attributes in ``attrs``: ``key=value`` lines sorted by key."""
-    lines = sorted(f"{k}={v}" for k, v in attrs.items() if isinstance(v, str) and k != TEXT_CHECKSUM)
-    return zlib.crc32("\n".join(lines).encode())
 
 
 def check_text(path: str, obj: h5py.Group, what: str) -> None:

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..history import HISTORY_FIELDS
 from ..spec import attr_value
-from .names import SERIES_FIELDS, SNAPSHOT_FIELDS, describe
+from ._format import SERIES_FIELDS, SNAPSHOT_FIELDS, describe
 
 __all__ = ["attributes", "series_frame", "dataset", "unwrapped_momentum"]
 

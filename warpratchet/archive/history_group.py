@@ -6,7 +6,7 @@ sink at each chunk end, in the same flush as the series row and before their cou
 the history of a chunk end is on disk before any checkpoint at that step. A resume keeps the
 records up to the checkpoint (the resumed run records the rest, identically), so a resumed
 run's history equals the uninterrupted one bit for bit. The layout is created with the rest
-(:func:`warpratchet.archive.layout.create`); this module writes, reads and salvages it.
+(:func:`warpratchet.archive._format.create`); this module writes, reads and salvages it.
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ from typing import Any
 import h5py
 
 from ..history import BLOCK_FIELDS, HISTORY_FIELDS, History
+from ._format import HISTORY_COUNTERS
 from .checks import read_counter, reading, valid_rows
 from .checks import refresh as _refresh
-from .names import HISTORY_COUNTERS
 from .rows import Rows, fill_rows
 
 __all__ = [

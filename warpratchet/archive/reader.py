@@ -5,10 +5,10 @@ opens a file a writer has open in SWMR-read mode): metadata are read on opening,
 ``series``, ``snapshots`` and the checkpoint slots are read afresh on every access and only up
 to the live counters, which the writer raises after the rows are on disk. A slot's ``step`` is
 read before and after its data (a sequence lock), so a checkpoint the writer recycles meanwhile
-is never returned. Any HDF5 failure becomes one :class:`~warpratchet.archive.names.ArchiveError`
+is never returned. Any HDF5 failure becomes one :class:`~warpratchet.archive.ArchiveError`
 line; a damaged or non-finite checkpoint is skipped with an
-:class:`~warpratchet.archive.names.ArchiveWarning` naming what was recovered instead. Format
-versions 1 and 2 are read (:mod:`.names`).
+:class:`~warpratchet.archive.ArchiveWarning` naming what was recovered instead. Format
+versions 1 and 2 are read (:mod:`._format`).
 """
 
 from __future__ import annotations
@@ -27,17 +27,18 @@ from ..history import History
 from ..spec import SAMPLERS, RunSpec, attr_value, params_of
 from . import progress
 from . import transport as _transport
-from .checks import TEXT_CHECKSUM, check_text, read_counter, reading, valid_rows
-from .history_group import history_info, read_history
-from .layout import read_settings
-from .names import (
+from ._format import (
     COUNTERS,
     FORMAT,
     READABLE_VERSIONS,
     SERIES_FIELDS,
+    TEXT_CHECKSUM,
     ArchiveError,
     ArchiveWarning,
+    read_settings,
 )
+from .checks import check_text, read_counter, reading, valid_rows
+from .history_group import history_info, read_history
 from .slots import newest_good, read_state, slot_steps
 from .snapshots import Snapshots, read_snapshots
 

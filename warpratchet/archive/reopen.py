@@ -11,7 +11,7 @@ from typing import TypeVar
 
 from .._files import claim
 from ..ensemble import Ensemble
-from .names import ArchiveError
+from ._format import ArchiveError
 from .resume import salvage
 
 #: The sink class (``ArchiveSink``), passed in by the classmethod ``ArchiveSink.resume``.

@@ -4,13 +4,13 @@
 from what is valid in it: the metadata, the initial state, the series rows and snapshots up to
 the newest good checkpoint, and that checkpoint. :func:`salvage` reads all of it (refusing a
 kernel that would not continue the run bit for bit); :meth:`Salvage.write` puts it into the new
-file, whose layout :func:`~warpratchet.archive.layout.create` has made. Rows past the checkpoint
+file, whose layout :func:`~warpratchet.archive._format.create` has made. Rows past the checkpoint
 are dropped: the resumed run writes them again, identically (only their clocks differ).
 
 Damage costs only what it hit: a series row or snapshot whose checksum fails is
 left out, a damaged initial state of a sampled ensemble is sampled again (the samplers are
 deterministic), otherwise the checkpoint becomes the archive's initial state; each is named in
-one :class:`~warpratchet.archive.names.ArchiveWarning`.
+one :class:`~warpratchet.archive.ArchiveWarning`.
 """
 
 from __future__ import annotations
@@ -29,10 +29,17 @@ from ..ensemble import STATE_FIELDS, Ensemble
 from ..history import BLOCK_FIELDS, HISTORY_FIELDS, History
 from ..spec import SAMPLERS
 from . import transport as _transport
+from ._format import (
+    COUNTERS,
+    FORMAT_VERSION,
+    SERIES_FIELDS,
+    SNAPSHOT_FIELDS,
+    ArchiveError,
+    ArchiveWarning,
+    kernel_constants,
+)
 from .checks import reading
 from .history_group import history_counts, history_settings, write_history
-from .layout import kernel_constants
-from .names import COUNTERS, FORMAT_VERSION, SERIES_FIELDS, SNAPSHOT_FIELDS, ArchiveError, ArchiveWarning
 from .reader import Archive, Snapshots
 from .rows import fill_rows
 
@@ -49,7 +56,7 @@ class Salvage:
     state: dict[str, np.ndarray]
     #: The checkpoint's step (the initial step if there is no checkpoint).
     step: int
-    #: Keyword arguments of :func:`~warpratchet.archive.layout.create` (metadata, stored settings,
+    #: Keyword arguments of :func:`~warpratchet.archive._format.create` (metadata, stored settings,
     #: initial state, snapshot indices).
     layout: dict[str, Any]
     #: The rows up to ``step``, keys :data:`SERIES_FIELDS`.

@@ -17,7 +17,7 @@ import h5py
 import numpy as np
 from h5py import h5s
 
-from .layout import ROW_CHUNK
+from ._format import ROW_CHUNK
 
 __all__ = ["Rows", "set_counter", "fill_rows"]
 

@@ -18,9 +18,9 @@ import numpy as np
 
 from .._files import ensure_space, sync_h5
 from ..ensemble import STATE_FIELDS
+from ._format import SLOTS, ArchiveError
 from .checks import check_extent, listed, nonfinite, reading
 from .checks import refresh as _refresh
-from .names import SLOTS, ArchiveError
 from .rows import set_counter
 
 __all__ = ["read_state", "slot_step", "slot_steps", "newest_good", "write_slot"]

@@ -17,9 +17,9 @@ import numpy as np
 from ..ensemble import STATE_FIELDS
 from ..observables import acceleration, lyapunov
 from ..sampling import salted_subsample
+from ._format import SNAPSHOT_FIELDS, ArchiveError
 from .checks import check_extent, reading, valid_rows
 from .checks import refresh as _refresh
-from .names import SNAPSHOT_FIELDS, ArchiveError
 
 __all__ = ["Snapshots", "read_snapshots", "snapshot_indices", "snapshot_row"]
 

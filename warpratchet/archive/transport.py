@@ -28,10 +28,9 @@ from ..spec import attr_value
 from ..transport.fits import GROUPS
 from ..transport.histograms import BINS, CARRY_FIELDS, HISTOGRAMS
 from ..transport.report import counts_transport
+from ._format import ROW_CHUNK, SLOTS, STATE_CHUNK, ArchiveError, _dimension, _group, _set_attrs, seal
 from .checks import read_counter, reading, valid_rows
 from .checks import refresh as _refresh
-from .layout import ROW_CHUNK, STATE_CHUNK, _dimension, _group, _set_attrs, seal
-from .names import SLOTS, ArchiveError
 from .rows import Rows
 
 __all__ = [

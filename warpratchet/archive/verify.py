@@ -18,9 +18,9 @@ import numpy as np
 
 from .._files import claim
 from .._h5verify import first_line, read_everything
+from ._format import COUNTERS, SLOTS, ArchiveError
 from .checks import listed, nonfinite, read_counter
 from .history_group import history_counts
-from .names import COUNTERS, SLOTS, ArchiveError
 from .reader import Archive
 from .slots import slot_step
 

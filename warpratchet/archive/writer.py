@@ -44,13 +44,9 @@ from ..ensemble import STATE_FIELDS, Ensemble, Observer
 from ..errors import check_count, check_optional, check_real
 from ..history import History
 from ..spec import CHECKPOINT_SECONDS, check_checkpoint_seconds, check_setting
-from . import layout
+from . import _format
 from . import transport as _transport
-from .building import as_archive_error, build_file
-from .checks import listed, nonfinite
-from .chunking import sink_schedule
-from .history_group import HistoryWriter, check_history
-from .names import (
+from ._format import (
     COUNTERS,
     FORMAT_VERSION,
     SERIES_FIELDS,
@@ -58,6 +54,10 @@ from .names import (
     ArchiveError,
     NonFiniteStateError,
 )
+from .building import as_archive_error, build_file
+from .checks import listed, nonfinite
+from .chunking import sink_schedule
+from .history_group import HistoryWriter, check_history
 from .reopen import reopen
 from .rows import Rows, set_counter
 from .slots import write_slot
@@ -162,7 +162,7 @@ class ArchiveSink(Observer):
         try:
             m = min(snapshot_points, ensemble.points) if snapshot_every else 0
             indices = snapshot_indices(ensemble.points, m, ensemble.seed)
-            settings = layout.run_settings(
+            settings = _format.run_settings(
                 ensemble,
                 threshold=threshold,
                 threshold_rule=threshold_rule,
@@ -175,14 +175,14 @@ class ArchiveSink(Observer):
             contents = {
                 "params": ensemble.params,
                 "settings": settings,
-                "versions": layout.software_versions(),
+                "versions": _format.software_versions(),
                 "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                 "initial": initial,
                 "initial_step": ensemble.step,
                 "indices": indices,
                 "history": history,
             }
-            needed = sum(v.nbytes for k, v in initial.items() if np.any(v != layout.FILL[k]))
+            needed = sum(v.nbytes for k, v in initial.items() if np.any(v != _format.FILL[k]))
             self._build(path, contents, ensemble, replace=exists, needed=needed)
         finally:
             if old_fd is not None:
