@@ -30,9 +30,9 @@ import numpy as np
 from ._h5 import sync_h5
 from .archive import _format
 from .archive._format import COUNTERS, FORMAT_VERSION, SERIES_FIELDS, SLOTS, describe
+from .archive._rows import fill_rows, set_counter
 from .archive.building import build_file
 from .archive.history_group import write_history
-from .archive.rows import fill_rows, set_counter
 from .ensemble import STATE_FIELDS
 from .spec import CHECKPOINT_SECONDS
 

@@ -17,9 +17,8 @@ import h5py
 
 from ..history import BLOCK_FIELDS, HISTORY_FIELDS, History
 from ._format import HISTORY_COUNTERS
-from .checks import read_counter, reading, valid_rows
-from .checks import refresh as _refresh
-from .rows import Rows, fill_rows
+from ._rows import Rows, fill_rows, read_counter, reading, valid_rows
+from ._rows import refresh as _refresh
 
 __all__ = [
     "HistoryWriter",

@@ -37,10 +37,18 @@ from ._format import (
     ArchiveWarning,
     read_settings,
 )
-from .checks import check_text, read_counter, reading, valid_rows
+from ._rows import (
+    Snapshots,
+    check_text,
+    newest_good,
+    read_counter,
+    read_snapshots,
+    read_state,
+    reading,
+    slot_steps,
+    valid_rows,
+)
 from .history_group import history_info, read_history
-from .slots import newest_good, read_state, slot_steps
-from .snapshots import Snapshots, read_snapshots
 
 __all__ = ["Snapshots", "Archive", "open_archive"]
 
@@ -170,7 +178,7 @@ class Archive:
         return read_snapshots(self.path, self._file, self.snapshot_count)
 
     def _slot_steps(self, problems: list[str] | None = None) -> list[tuple[int, str]]:
-        """Complete slots as ``(step, name)``, newest first (:func:`.slots.slot_steps`)."""
+        """Complete slots as ``(step, name)``, newest first (:func:`._rows.slot_steps`)."""
         return slot_steps(self.path, self._file, problems)
 
     @property

@@ -38,10 +38,9 @@ from ._format import (
     ArchiveWarning,
     kernel_constants,
 )
-from .checks import reading
+from ._rows import fill_rows, reading
 from .history_group import history_counts, history_settings, write_history
 from .reader import Archive, Snapshots
-from .rows import fill_rows
 
 __all__ = ["Salvage", "salvage"]
 

@@ -29,9 +29,8 @@ from ..transport.fits import GROUPS
 from ..transport.histograms import BINS, CARRY_FIELDS, HISTOGRAMS
 from ..transport.report import counts_transport
 from ._format import ROW_CHUNK, SLOTS, STATE_CHUNK, ArchiveError, _dimension, _group, _set_attrs, seal
-from .checks import read_counter, reading, valid_rows
-from .checks import refresh as _refresh
-from .rows import Rows
+from ._rows import Rows, read_counter, reading, valid_rows
+from ._rows import refresh as _refresh
 
 __all__ = [
     "FEATURE",

@@ -54,14 +54,11 @@ from ._format import (
     ArchiveError,
     NonFiniteStateError,
 )
+from ._rows import Rows, listed, nonfinite, set_counter, snapshot_indices, snapshot_row, write_slot
 from .building import as_archive_error, build_file
-from .checks import listed, nonfinite
 from .chunking import sink_schedule
 from .history_group import HistoryWriter, check_history
 from .reopen import reopen
-from .rows import Rows, set_counter
-from .slots import write_slot
-from .snapshots import snapshot_indices, snapshot_row
 
 __all__ = ["ArchiveSink", "NonFiniteStateError"]
 
