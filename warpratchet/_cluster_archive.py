@@ -29,10 +29,10 @@ import numpy as np
 
 from ._h5 import sync_h5
 from .archive import _format
+from .archive._features import write_history
 from .archive._format import COUNTERS, FORMAT_VERSION, SERIES_FIELDS, SLOTS, describe
 from .archive._rows import fill_rows, set_counter
 from .archive.building import build_file
-from .archive.history_group import write_history
 from .ensemble import STATE_FIELDS
 from .spec import CHECKPOINT_SECONDS
 
@@ -69,15 +69,15 @@ def _write_transport(
     """``/transport`` as a :class:`~warpratchet.transport.TransportEnsemble`'s archive has it: its
     rows the sums of the shards' rows (the shards end their chunks at the same steps), the
     checkpoint slot's counts and spread rows the merged ones, its carry per point virtual datasets
-    over the shards' (:mod:`warpratchet.archive.transport`)."""
-    from .archive import transport as _transport
+    over the shards' (:mod:`warpratchet.archive._features`)."""
+    from .archive._features import create_transport, read_transport_rows
     from .transport.histograms import CARRY_FIELDS
 
-    _transport.create(f, merged.points)
+    create_transport(f, merged.points)
     total = None
     for path in archives:
         with h5py.File(path, "r") as shard:
-            rows = _transport.read_rows(shard, path)
+            rows = read_transport_rows(shard, path)
         if total is None:
             total = rows
         elif np.array_equal(rows["step"], total["step"]):

@@ -26,7 +26,14 @@ from ..ensemble import Ensemble
 from ..history import History
 from ..spec import SAMPLERS, RunSpec, attr_value, params_of
 from . import progress
-from . import transport as _transport
+from ._features import (
+    TRANSPORT_FEATURE,
+    history_info,
+    read_history,
+    read_transport_rows,
+    read_transport_slot,
+    restore_transport,
+)
 from ._format import (
     COUNTERS,
     FORMAT,
@@ -48,7 +55,6 @@ from ._rows import (
     slot_steps,
     valid_rows,
 )
-from .history_group import history_info, read_history
 
 __all__ = ["Snapshots", "Archive", "open_archive"]
 
@@ -216,10 +222,10 @@ class Archive:
         state of that checkpoint (None for the initial state: counting starts there; a slot whose
         transport state is unreadable is skipped like a damaged one)."""
         read_extra = None
-        if _transport.FEATURE in self.features:
+        if TRANSPORT_FEATURE in self.features:
 
             def read_extra(slot: str) -> Any:
-                return _transport.read_slot(self._file, self.path, slot, self.points)
+                return read_transport_slot(self._file, self.path, slot, self.points)
 
         found, problems = newest_good(self.path, self._file, self.points, read_extra)
         if found is not None:
@@ -246,10 +252,10 @@ class Archive:
         ``transport`` feature: :func:`.transport.restore`, counting from ``transport``)."""
         init, seed = self.settings["init"], self.settings["seed"]
         kwargs = {"device": device, "threads": threads, "sampler": init, "seed": seed}
-        if _transport.FEATURE not in self.features:
+        if TRANSPORT_FEATURE not in self.features:
             return Ensemble.from_state(self.params, state, step, **kwargs)
         settings = self.settings
-        return _transport.restore(
+        return restore_transport(
             self.params, state, step, transport, settings["threshold"], settings["threshold_rule"], **kwargs
         )
 
@@ -262,9 +268,9 @@ class Archive:
     def transport(self) -> dict[str, np.ndarray] | None:
         """The ``/transport`` rows (``step`` ``(R,)``, ``counts`` ``(R, 3, BINS)``: completed return
         gaps and flights per log2 bin at each chunk end), or None without the feature."""
-        if _transport.FEATURE not in self.features:
+        if TRANSPORT_FEATURE not in self.features:
             return None
-        return _transport.read_rows(self._file, self.path)
+        return read_transport_rows(self._file, self.path)
 
     @property
     def history(self) -> History | None:

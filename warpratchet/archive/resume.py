@@ -28,7 +28,14 @@ from .._h5verify import read_rows
 from ..ensemble import STATE_FIELDS, Ensemble
 from ..history import BLOCK_FIELDS, HISTORY_FIELDS, History
 from ..spec import SAMPLERS
-from . import transport as _transport
+from ._features import (
+    TRANSPORT_FEATURE,
+    history_counts,
+    history_settings,
+    read_transport_rows,
+    write_history,
+    write_transport_slot,
+)
 from ._format import (
     COUNTERS,
     FORMAT_VERSION,
@@ -39,7 +46,6 @@ from ._format import (
     kernel_constants,
 )
 from ._rows import fill_rows, reading
-from .history_group import history_counts, history_settings, write_history
 from .reader import Archive, Snapshots
 
 __all__ = ["Salvage", "salvage"]
@@ -88,7 +94,7 @@ class Salvage:
             for name in STATE_FIELDS:
                 slot[name].write_direct(np.ascontiguousarray(self.state[name]))
             if self.transport_rows is not None:
-                _transport.write_slot(f, "a", self.ensemble.transport_state())
+                write_transport_slot(f, "a", self.ensemble.transport_state())
             slot["step"][0] = self.step
             f["checkpoint"]["current"][0] = 0
 
@@ -163,8 +169,8 @@ def salvage(path: str | os.PathLike, *, threads: int | None = None, device: str 
         state, step, transport = arc.checkpoint_with_transport()
         ensemble = arc.restore(state, step, threads, device, transport)
         transport_rows = None
-        if _transport.FEATURE in arc.features:
-            rows = _transport.read_rows(arc.h5, path)
+        if TRANSPORT_FEATURE in arc.features:
+            rows = read_transport_rows(arc.h5, path)
             kept_rows = rows["step"] <= step
             transport_rows = {name: values[kept_rows] for name, values in rows.items()}
         series, ok = _readable_rows(arc, "series", SERIES_FIELDS, arc.rows, problems)

@@ -18,9 +18,9 @@ import numpy as np
 
 from .._files import claim
 from .._h5verify import first_line, read_everything
+from ._features import history_counts
 from ._format import COUNTERS, SLOTS, ArchiveError
 from ._rows import listed, nonfinite, read_counter, slot_step
-from .history_group import history_counts
 from .reader import Archive
 
 __all__ = ["verify_archive"]

@@ -45,7 +45,7 @@ from ..errors import check_count, check_optional, check_real
 from ..history import History
 from ..spec import CHECKPOINT_SECONDS, check_checkpoint_seconds, check_setting
 from . import _format
-from . import transport as _transport
+from ._features import HistoryWriter, TransportWriter, check_history, counts_transport, create_transport
 from ._format import (
     COUNTERS,
     FORMAT_VERSION,
@@ -57,7 +57,6 @@ from ._format import (
 from ._rows import Rows, listed, nonfinite, set_counter, snapshot_indices, snapshot_row, write_slot
 from .building import as_archive_error, build_file
 from .chunking import sink_schedule
-from .history_group import HistoryWriter, check_history
 from .reopen import reopen
 
 __all__ = ["ArchiveSink", "NonFiniteStateError"]
@@ -203,8 +202,8 @@ class ArchiveSink(Observer):
         rows and ``snaps`` snapshots, and take a shared lock on it."""
 
         def fill_all(f: h5py.File) -> None:
-            if _transport.counts_transport(ensemble):
-                _transport.create(f, ensemble.points)
+            if counts_transport(ensemble):
+                create_transport(f, ensemble.points)
             if fill is not None:
                 fill(f)
 
@@ -238,8 +237,8 @@ class ArchiveSink(Observer):
             kept = len(history.rows["step"]), len(history.block_rows["block_step"])
             self._groups.append(HistoryWriter(f, history, *kept))
         self._transport = None
-        if _transport.counts_transport(ensemble):
-            self._transport = _transport.TransportWriter(f)
+        if counts_transport(ensemble):
+            self._transport = TransportWriter(f)
             self._groups.append(self._transport)
         counters = COUNTERS[FORMAT_VERSION]
         self._series = Rows(f["series"], SERIES_FIELDS, f[counters["series"]], rows)
