@@ -4,7 +4,7 @@ Reads every module of ``warpratchet/``, ``viz/`` and ``benchmarks/`` with :mod:`
 every import, those inside functions and ``if TYPE_CHECKING:`` blocks included (an import a
 function runs later is an arrow all the same). An arrow goes from the importing module to the
 module that holds the imported name (``from .archive import open_archive`` is an arrow to the
-package ``warpratchet.archive``, ``from .archive.reader import Archive`` one to
+package ``warpratchet.archive``, ``from .archive._reader import Archive`` one to
 ``warpratchet.archive.reader``). Then:
 
 * no two modules import each other, however far round (no cycles);

@@ -39,8 +39,8 @@ from ._format import (
     ArchiveWarning,
     NonFiniteStateError,
 )
+from ._reader import Archive, Snapshots, open_archive
 from .chunking import CHECKPOINT_CHUNKS, CHECKPOINT_SECONDS, MIN_ARCHIVE_CHUNK_STEPS, run_to, schedule
-from .reader import Archive, Snapshots, open_archive
 from .verify import verify_archive
 from .writer import ArchiveSink
 

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..history import History
-from .reader import open_archive
+from ._reader import open_archive
 from .writer import ArchiveSink
 
 __all__ = ["archive_sink"]

@@ -45,8 +45,8 @@ from ._format import (
     ArchiveWarning,
     kernel_constants,
 )
+from ._reader import Archive, Snapshots
 from ._rows import fill_rows, reading
-from .reader import Archive, Snapshots
 
 __all__ = ["Salvage", "salvage"]
 

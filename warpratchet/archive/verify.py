@@ -20,8 +20,8 @@ from .._files import claim
 from .._h5verify import first_line, read_everything
 from ._features import history_counts
 from ._format import COUNTERS, SLOTS, ArchiveError
+from ._reader import Archive
 from ._rows import listed, nonfinite, read_counter, slot_step
-from .reader import Archive
 
 __all__ = ["verify_archive"]
 
