@@ -19,7 +19,7 @@ import pytest
 from support import MAP_FLAGS, cli
 
 from warpratchet import Ensemble, MapParams, open_archive, summarize
-from warpratchet.archive import ArchiveSink, _format, _rows, resume
+from warpratchet.archive import ArchiveSink, _format, _recovery, _rows
 from warpratchet.cli import main
 from warpratchet.sweep import file as sweep_file
 from warpratchet.sweep import read_sweep
@@ -187,7 +187,7 @@ def test_injected_enospc_while_resuming(tmp_path, monkeypatch, capsys):
     with ArchiveSink(out, ens, chunk_steps=100) as sink:
         ens.run(300, [sink], chunk_steps=sink.chunk_steps)
     before = out.read_bytes()
-    monkeypatch.setattr(resume.Salvage, "write", _enospc)
+    monkeypatch.setattr(_recovery.Salvage, "write", _enospc)
     assert main(["resume", str(out), "--steps", "600", "--quiet"]) == 1
     _one_line_disk_error(capsys.readouterr().err, out)
     assert out.read_bytes() == before

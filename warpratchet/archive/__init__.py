@@ -40,8 +40,8 @@ from ._format import (
     NonFiniteStateError,
 )
 from ._reader import Archive, Snapshots, open_archive
+from ._recovery import verify_archive
 from .chunking import CHECKPOINT_CHUNKS, CHECKPOINT_SECONDS, MIN_ARCHIVE_CHUNK_STEPS, run_to, schedule
-from .verify import verify_archive
 from .writer import ArchiveSink
 
 __all__ = [

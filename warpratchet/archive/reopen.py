@@ -1,6 +1,6 @@
 """Reopening an archive for appending: ``ArchiveSink.resume`` (:mod:`warpratchet.archive.writer`).
 
-The archive is rebuilt from what is valid in it (:func:`~warpratchet.archive.resume.salvage`)
+The archive is rebuilt from what is valid in it (:func:`~warpratchet.archive._recovery.salvage`)
 under a temporary name and put in place of the old file atomically, under an exclusive lock.
 """
 
@@ -12,7 +12,7 @@ from typing import TypeVar
 from .._files import claim
 from ..ensemble import Ensemble
 from ._format import ArchiveError
-from .resume import salvage
+from ._recovery import salvage
 
 #: The sink class (``ArchiveSink``), passed in by the classmethod ``ArchiveSink.resume``.
 Sink = TypeVar("Sink")
@@ -27,7 +27,7 @@ def reopen(
 
     The archive is rebuilt under a temporary name from what is valid (metadata, initial
     state, series rows and snapshots up to the checkpoint, the checkpoint; see
-    :mod:`warpratchet.archive.resume`) and atomically put in place of the old file, so a
+    :mod:`warpratchet.archive._recovery`) and atomically put in place of the old file, so a
     kill during ``resume`` loses nothing either. A damaged checkpoint, snapshot, series row
     or initial state is skipped and named in an :class:`ArchiveWarning`. A format v1 archive
     is rebuilt in today's format.
