@@ -41,7 +41,7 @@ from ._format import (
 )
 from ._reader import Archive, Snapshots, open_archive
 from ._recovery import verify_archive
-from .chunking import CHECKPOINT_CHUNKS, CHECKPOINT_SECONDS, MIN_ARCHIVE_CHUNK_STEPS, run_to, schedule
+from ._chunking import CHECKPOINT_CHUNKS, CHECKPOINT_SECONDS, MIN_ARCHIVE_CHUNK_STEPS, run_to, schedule
 from .writer import ArchiveSink
 
 __all__ = [

@@ -56,7 +56,7 @@ from ._format import (
 )
 from ._rows import Rows, listed, nonfinite, set_counter, snapshot_indices, snapshot_row, write_slot
 from .building import as_archive_error, build_file
-from .chunking import sink_schedule
+from ._chunking import sink_schedule
 from .reopen import reopen
 
 __all__ = ["ArchiveSink", "NonFiniteStateError"]
@@ -88,9 +88,9 @@ class ArchiveSink(Observer):
     checkpoint_seconds : float
         Checkpoint also at the chunk end after which the next one would come more than this
         many seconds (wall clock) after the last checkpoint, so that a kill loses at most about
-        this much work (default :data:`~warpratchet.archive.chunking.CHECKPOINT_SECONDS`).
+        this much work (default :data:`~warpratchet.archive.CHECKPOINT_SECONDS`).
     checkpoint_every, chunk_steps : int, optional
-        See :func:`~warpratchet.archive.chunking.schedule`; the default chunk is long enough
+        See :func:`~warpratchet.archive.schedule`; the default chunk is long enough
         that a series row costs at most :data:`~warpratchet.archive.chunking.ROW_SHARE` of the
         kernel time at this machine's measured speed
         (:func:`~warpratchet.archive.chunking.sink_min_chunk_steps`).
