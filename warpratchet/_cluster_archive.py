@@ -32,7 +32,7 @@ from .archive import _format
 from .archive._features import write_history
 from .archive._format import COUNTERS, FORMAT_VERSION, SERIES_FIELDS, SLOTS, describe
 from .archive._rows import fill_rows, set_counter
-from .archive.building import build_file
+from .archive._writer import build_file
 from .ensemble import STATE_FIELDS
 from .spec import CHECKPOINT_SECONDS
 
