@@ -117,9 +117,9 @@ class ArchiveSink(Observer):
         this much work (default :data:`~warpratchet.archive.CHECKPOINT_SECONDS`).
     checkpoint_every, chunk_steps : int, optional
         See :func:`~warpratchet.archive.schedule`; the default chunk is long enough
-        that a series row costs at most :data:`~warpratchet.archive.chunking.ROW_SHARE` of the
+        that a series row costs at most :data:`~warpratchet.archive._chunking.ROW_SHARE` of the
         kernel time at this machine's measured speed
-        (:func:`~warpratchet.archive.chunking.sink_min_chunk_steps`).
+        (:func:`~warpratchet.archive._chunking.sink_min_chunk_steps`).
     threshold : float, optional
         FTLE threshold for the chaotic points of the series (default: per step, the rule
         ``threshold_rule``, :func:`~warpratchet.observables.lyapunov_threshold`).
