@@ -41,7 +41,7 @@ import warnings
 import h5py
 import numpy as np
 
-import warpratchet.archive.building as building
+import warpratchet.archive._writer as archive_writer
 from warpratchet import Ensemble, MapParams, Observer
 from warpratchet._h5 import LIBVER, open_h5
 from warpratchet.archive import SERIES_FIELDS, Archive, ArchiveSink, ArchiveWarning
@@ -62,7 +62,7 @@ class _Report(Observer):
 
 def _writer(path: str, committed, unpaged: bool) -> None:
     if unpaged:  # the file creation before paged file space
-        building.create_h5 = lambda p: h5py.File(p, "w", libver=LIBVER)
+        archive_writer.create_h5 = lambda p: h5py.File(p, "w", libver=LIBVER)
     ens = Ensemble.sample(MapParams(3.0, 0.1, 0.01), 64, "strip", 1, threads=1)
     sink = ArchiveSink(
         path, ens, snapshot_every=SNAPSHOT, snapshot_points=16, checkpoint_every=CHECKPOINT, chunk_steps=CHUNK

@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from warpratchet import __version__, paper, theory
-from warpratchet._files import publish, temporary_beside
+from warpratchet.files import publish, temporary_beside
 
 from .checks import (
     REQUIRED,
@@ -324,7 +324,7 @@ def write_report(
         load_sweeps(sweeps_dir), census_block(existing), str(sweeps_dir), threads, load_extras(sweeps_dir)
     )
     out.parent.mkdir(parents=True, exist_ok=True)
-    # Written beside, made durable, renamed into place (warpratchet._files: one implementation).
+    # Written beside, made durable, renamed into place (warpratchet.files: one implementation).
     with temporary_beside(out) as tmp:
         if out.exists():
             shutil.copymode(out, tmp)  # a replaced report keeps its permissions

@@ -56,7 +56,7 @@ __all__ = [
 def _archive_sink(ensemble: Any, path: Any, chunk_steps: int | None) -> Any:
     """``Ensemble.run(archive=path)``'s sink: the archive sits above the run loop, which reaches it
     only through this registration (:func:`warpratchet.runloop.register_sink`)."""
-    from .archive.attach import archive_sink
+    from .archive._writer import archive_sink
 
     return archive_sink(ensemble, path, chunk_steps)
 

@@ -28,11 +28,11 @@ import h5py
 import numpy as np
 
 from ._h5 import sync_h5
-from .archive import layout
-from .archive.building import build_file
-from .archive.history_group import write_history
-from .archive.names import COUNTERS, FORMAT_VERSION, SERIES_FIELDS, SLOTS, describe
-from .archive.rows import fill_rows, set_counter
+from .archive import _format
+from .archive._features import write_history
+from .archive._format import COUNTERS, FORMAT_VERSION, SERIES_FIELDS, SLOTS, describe
+from .archive._rows import fill_rows, set_counter
+from .archive._writer import build_file
 from .ensemble import STATE_FIELDS
 from .spec import CHECKPOINT_SECONDS
 
@@ -69,15 +69,15 @@ def _write_transport(
     """``/transport`` as a :class:`~warpratchet.transport.TransportEnsemble`'s archive has it: its
     rows the sums of the shards' rows (the shards end their chunks at the same steps), the
     checkpoint slot's counts and spread rows the merged ones, its carry per point virtual datasets
-    over the shards' (:mod:`warpratchet.archive.transport`)."""
-    from .archive import transport as _transport
+    over the shards' (:mod:`warpratchet.archive._features`)."""
+    from .archive._features import create_transport, read_transport_rows
     from .transport.histograms import CARRY_FIELDS
 
-    _transport.create(f, merged.points)
+    create_transport(f, merged.points)
     total = None
     for path in archives:
         with h5py.File(path, "r") as shard:
-            rows = _transport.read_rows(shard, path)
+            rows = read_transport_rows(shard, path)
         if total is None:
             total = rows
         elif np.array_equal(rows["step"], total["step"]):
@@ -113,16 +113,16 @@ def write_merged(out: str | os.PathLike, merged: Any, workdir: str, bounds: list
     archives = [shard_paths(workdir, k)[0] for k in range(len(bounds))]
     relative = [os.path.relpath(path, folder) for path in archives]
     spec = merged.spec
-    settings = layout.run_settings(
+    settings = _format.run_settings(
         merged, threshold=spec.threshold, threshold_rule=spec.threshold_rule,
         chunk_steps=spec.chunk_steps or spec.steps, checkpoint_every=spec.steps,
         checkpoint_seconds=CHECKPOINT_SECONDS, snapshot_every=0, snapshot_points=0,
     )  # fmt: skip
-    fills = {name: np.broadcast_to(layout.FILL[name], (merged.points,)) for name in STATE_FIELDS}
+    fills = {name: np.broadcast_to(_format.FILL[name], (merged.points,)) for name in STATE_FIELDS}
     contents = {
         "params": merged.params,
         "settings": settings,
-        "versions": layout.software_versions(),
+        "versions": _format.software_versions(),
         "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
         "initial": fills,  # every field its fill value: nothing is written, the virtual data follows
         "initial_step": 0,
@@ -137,7 +137,7 @@ def write_merged(out: str | os.PathLike, merged: Any, workdir: str, bounds: list
             sources = [
                 (rel, f"/initial/{name}", lo, hi) for rel, (lo, hi) in zip(relative, bounds, strict=True)
             ]
-            _virtual(f["initial"], name, sources, layout.FILL[name])
+            _virtual(f["initial"], name, sources, _format.FILL[name])
             sources = [
                 (rel, f"/checkpoint/{slot}/{name}", lo, hi)
                 for rel, slot, (lo, hi) in zip(relative, slots, bounds, strict=True)

@@ -66,7 +66,7 @@ def create_h5(path: str | os.PathLike) -> h5py.File:
     :func:`abandon_h5` could not close a paged file, and the file space is HDF5's default.
 
     The root group keeps up to 64 links and attributes in its checksummed object header, as
-    every group of an archive does (``archive.layout``): past 8 HDF5 would move them to an
+    every group of an archive does (``archive._format``): past 8 HDF5 would move them to an
     unchecksummed fractal heap, and an archive's root carries its CF global attributes.
     """
     fapl = h5p.create(h5p.FILE_ACCESS)

@@ -40,10 +40,10 @@ from warpratchet.archive import (
     Archive,
     ArchiveError,
     ArchiveSink,
-    building,
+    _writer,
     run_to,
 )
-from warpratchet.archive.layout import ROW_CHUNK
+from warpratchet.archive._format import ROW_CHUNK
 from warpratchet.ensemble import STATE_FIELDS
 from warpratchet.history import History
 
@@ -231,7 +231,7 @@ def test_a_torn_row_chunk_of_a_killed_writer_reads_and_resumes(tmp_path, monkeyp
         want, want_snaps = arc.series, arc.snapshots
     path = tmp_path / "run.h5"
     if space == "unpaged":
-        monkeypatch.setattr(building, "create_h5", lambda p: h5py.File(p, "w", libver=LIBVER))
+        monkeypatch.setattr(_writer, "create_h5", lambda p: h5py.File(p, "w", libver=LIBVER))
     _archived(tmp_path / "live.h5", 50, live_copy=path)  # 5 rows, 2 snapshots, checkpoint at 50
     monkeypatch.undo()  # the resume below writes as today
     with open_h5(path) as f:

@@ -23,7 +23,7 @@ from support import MAP_FLAGS, cli
 
 from warpratchet import Ensemble, MapParams, open_archive
 from warpratchet.archive import ArchiveError, ArchiveSink
-from warpratchet.archive.checks import TEXT_CHECKSUM
+from warpratchet.archive._format import TEXT_CHECKSUM
 
 
 @pytest.fixture(scope="module")

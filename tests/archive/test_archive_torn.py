@@ -18,7 +18,7 @@ from support import same_state
 
 from warpratchet import MapParams
 from warpratchet._h5 import LIBVER, open_h5
-from warpratchet.archive import Archive, ArchiveSink, building, run_to
+from warpratchet.archive import Archive, ArchiveSink, _writer, run_to
 from warpratchet.history import BLOCK_FIELDS, HISTORY_FIELDS, History
 from warpratchet.transport import TransportEnsemble
 
@@ -70,7 +70,7 @@ def test_torn_history_and_transport_chunks_read_their_committed_rows_and_resume(
     ``unpaged``: a file as archives were written before paged file space (any row chunk tears)."""
     intact, torn = tmp_path / "intact.h5", tmp_path / "torn.h5"
     if space == "unpaged":
-        monkeypatch.setattr(building, "create_h5", lambda p: h5py.File(p, "w", libver=LIBVER))
+        monkeypatch.setattr(_writer, "create_h5", lambda p: h5py.File(p, "w", libver=LIBVER))
     _live_copy(tmp_path / "live.h5", intact)
     monkeypatch.undo()  # the resumes below write as today
     shutil.copy(intact, torn)

@@ -19,7 +19,7 @@ import pytest
 from support import MAP_FLAGS, cli
 
 from warpratchet import Ensemble, MapParams, open_archive, summarize
-from warpratchet.archive import ArchiveSink, layout, resume, rows, slots
+from warpratchet.archive import ArchiveSink, _format, _recovery, _rows
 from warpratchet.cli import main
 from warpratchet.sweep import file as sweep_file
 from warpratchet.sweep import read_sweep
@@ -148,9 +148,9 @@ def _enospc(*args, **kwargs):
 @pytest.mark.parametrize(
     ("where", "target", "name"),
     [
-        ("creation", layout, "create"),
-        ("series row", rows.Rows, "put"),
-        ("checkpoint", slots, "sync_h5"),
+        ("creation", _format, "create"),
+        ("series row", _rows.Rows, "put"),
+        ("checkpoint", _rows, "sync_h5"),
     ],
 )
 def test_injected_enospc_in_a_run(tmp_path, monkeypatch, capsys, where, target, name):
@@ -187,7 +187,7 @@ def test_injected_enospc_while_resuming(tmp_path, monkeypatch, capsys):
     with ArchiveSink(out, ens, chunk_steps=100) as sink:
         ens.run(300, [sink], chunk_steps=sink.chunk_steps)
     before = out.read_bytes()
-    monkeypatch.setattr(resume.Salvage, "write", _enospc)
+    monkeypatch.setattr(_recovery.Salvage, "write", _enospc)
     assert main(["resume", str(out), "--steps", "600", "--quiet"]) == 1
     _one_line_disk_error(capsys.readouterr().err, out)
     assert out.read_bytes() == before
@@ -222,12 +222,12 @@ def test_no_crash_at_exit_after_a_failed_write(tmp_path):
     script = f"""
 import errno, os
 from warpratchet import Ensemble, MapParams
-from warpratchet.archive import ArchiveSink, rows
+from warpratchet.archive import ArchiveSink, _rows
 ens = Ensemble.sample(MapParams(3.0, 0.1, 0.01), 100, "strip", 0)
 sink = ArchiveSink({str(tmp_path / "x.h5")!r}, ens, chunk_steps=10)
 def fail(*a, **k):
     raise OSError(errno.ENOSPC, "No space left on device")
-rows.Rows.put = fail
+_rows.Rows.put = fail
 try:
     ens.run(100, [sink], chunk_steps=10)
 except OSError as exc:

@@ -18,8 +18,14 @@ import pytest
 from support import cli, flip_bit, same_state
 
 from warpratchet import Ensemble, MapParams, Observer, open_archive
-from warpratchet.archive import ArchiveError, ArchiveSink, ArchiveWarning, NonFiniteStateError, run_to
-from warpratchet.archive.verify import verify_archive
+from warpratchet.archive import (
+    ArchiveError,
+    ArchiveSink,
+    ArchiveWarning,
+    NonFiniteStateError,
+    run_to,
+    verify_archive,
+)
 from warpratchet.cli import main
 
 PARAMS = MapParams(3.0, 0.1, 0.01)

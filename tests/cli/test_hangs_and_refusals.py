@@ -173,12 +173,12 @@ def test_a_refused_write_tells_a_python_user_what_holds(tmp_path, monkeypatch):
     import errno
 
     from warpratchet._storage import StorageError
-    from warpratchet.archive import open_archive, writer
+    from warpratchet.archive import _writer, open_archive
 
     def full(*args, **kwargs):
         raise OSError(errno.ENOSPC, "No space left on device")
 
-    monkeypatch.setattr(writer, "write_slot", full)
+    monkeypatch.setattr(_writer, "write_slot", full)
     path = tmp_path / "nb.h5"
     ens = Ensemble.sample(PARAMS, 200, seed=1)
     with pytest.raises(StorageError) as caught:

@@ -15,7 +15,7 @@ import pytest
 from support import MAP_FLAGS, cli, same_state
 
 from warpratchet import Ensemble, MapParams, Observer
-from warpratchet.archive import ArchiveSink, open_archive, writer
+from warpratchet.archive import ArchiveSink, _writer, open_archive
 from warpratchet.spec import CHECKPOINT_SECONDS
 
 PARAMS = MapParams(3.0, 0.1, 0.01)
@@ -53,7 +53,7 @@ def test_checkpoints_come_before_the_unsaved_work_passes_the_cadence(tmp_path, m
     """Chunks of 10 s, a cadence of 25 s and a step interval that never comes: a checkpoint at
     every second chunk end (after 20 s, since the next end would leave 30 s unsaved)."""
     clock = _Clock(10.0)
-    monkeypatch.setattr(writer.time, "monotonic", clock)
+    monkeypatch.setattr(_writer.time, "monotonic", clock)
     ens = Ensemble.sample(PARAMS, 500, seed=3)
     path = tmp_path / "a.h5"
     with ArchiveSink(path, ens, chunk_steps=100, checkpoint_every=10**6, checkpoint_seconds=25) as sink:
@@ -68,7 +68,7 @@ def test_checkpoints_come_before_the_unsaved_work_passes_the_cadence(tmp_path, m
 
 def test_a_chunk_longer_than_the_cadence_checkpoints_at_every_chunk_end(tmp_path, monkeypatch):
     clock = _Clock(90.0)
-    monkeypatch.setattr(writer.time, "monotonic", clock)
+    monkeypatch.setattr(_writer.time, "monotonic", clock)
     ens = Ensemble.sample(PARAMS, 500, seed=3)
     with ArchiveSink(tmp_path / "a.h5", ens, chunk_steps=100, checkpoint_every=10**6) as sink:
         seen = _Checkpoints(sink)

@@ -253,7 +253,7 @@ def test_run_with_scheduler_prints_the_single_machine_numbers(capsys, cluster, t
     assert there.pop("workdir") == work and sorted(os.listdir(work))[:2] == ["run.json", "shard-0000.h5"]
     # each shard's archive is an ordinary one: it verifies, and holds its points at the last step
     from warpratchet import open_archive
-    from warpratchet.archive.verify import verify_archive
+    from warpratchet.archive import verify_archive
 
     assert verify_archive(os.path.join(work, "shard-0002.h5"))[0] == []
     with open_archive(os.path.join(work, "shard-0002.h5")) as arc:
@@ -296,7 +296,7 @@ def test_the_benchmark_runs_and_its_runs_are_identical():
 # -- one archive of the whole run ------------------------------------------------------------------------
 def test_out_is_one_archive_of_the_whole_run(client, references, tmp_path):
     from warpratchet import open_archive
-    from warpratchet.archive.verify import verify_archive
+    from warpratchet.archive import verify_archive
 
     out = tmp_path / "run.h5"
     merged = run_sharded(SPEC, client, 3, out=out)
@@ -400,7 +400,7 @@ def test_the_merge_gathers_numbers_per_block_and_row_not_per_point():
 
 def test_out_of_a_transport_run_holds_the_merged_transport_group(client, tmp_path):
     from warpratchet import open_archive
-    from warpratchet.archive.verify import verify_archive
+    from warpratchet.archive import verify_archive
 
     out = tmp_path / "run.h5"
     run_sharded(SPEC, client, 3, transport=True, out=out)

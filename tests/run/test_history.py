@@ -13,7 +13,7 @@ import pytest
 from support import quick_benchmark, run_argv, same_history
 
 from warpratchet import Ensemble, MapParams, Observer, RunSpec, acceleration, lyapunov, summarize
-from warpratchet.archive.snapshots import snapshot_indices
+from warpratchet.archive._rows import snapshot_indices
 from warpratchet.cli import main
 from warpratchet.history import (
     BLOCK_FIELDS,

@@ -232,9 +232,9 @@ def test_a_second_ctrl_c_right_after_the_first_corrupts_nothing(tmp_path):
 def test_a_second_ctrl_c_during_the_checkpoint_write_corrupts_nothing(tmp_path, monkeypatch):
     """A Ctrl-C delivered inside the checkpoint's write (after the slot's data, before its step)
     is noted, not acted on: the new checkpoint is complete and the archive verifies."""
-    from warpratchet.archive import open_archive, slots, verify_archive
+    from warpratchet.archive import _rows, open_archive, verify_archive
 
-    real_sync = slots.sync_h5
+    real_sync = _rows.sync_h5
     calls = []
 
     def interrupted_sync(f):
@@ -246,7 +246,7 @@ def test_a_second_ctrl_c_during_the_checkpoint_write_corrupts_nothing(tmp_path, 
     class FirstCtrlC(Observer):
         def after_chunk(self, ensemble, seconds):
             if ensemble.step == 3000:
-                monkeypatch.setattr(slots, "sync_h5", interrupted_sync)
+                monkeypatch.setattr(_rows, "sync_h5", interrupted_sync)
                 os.kill(os.getpid(), signal.SIGINT)
 
     path = tmp_path / "nb.h5"

@@ -6,30 +6,31 @@ from which a run continues *bit for bit* as if it had never stopped. The layout 
 name by name in ``docs/archive.md`` (format ``warpratchet-archive``, version
 :data:`FORMAT_VERSION`).
 
-One idea per module:
+The package's public names are those below (``__all__``); the implementation is private, one
+idea per module:
 
-* :mod:`.names`: what an archive contains (format and versions, names, units; the errors);
-* :mod:`.layout`: building it (settings attributes, every dataset up front);
-* :mod:`.rows`: appending rows behind a live counter;
-* :mod:`.building`: a file made under a temporary name and published atomically;
-* :mod:`.slots`: the two checkpoint slots (crash-safe writes, sequence-locked reads);
-* :mod:`.snapshots`: the ``/snapshots`` subsample, :class:`Snapshots`;
-* :mod:`.history_group`: the optional ``/history`` group (feature ``history``);
-* :mod:`.writer`: :class:`ArchiveSink`, the observer that writes it;
-* :mod:`.reader`: :func:`open_archive`, :class:`Archive`;
-* :mod:`.progress`: percentage done and ETA of ``inspect``;
-* :mod:`.export`: ``Archive.to_pandas()`` and ``Archive.to_xarray()``;
-* :mod:`.verify`: :func:`verify_archive`, every checksum and value of a file (``warpratchet verify``);
-* :mod:`.resume`: what a resume keeps (used by :meth:`ArchiveSink.resume`);
-* :mod:`.chunking`: :func:`schedule` (chunk length, checkpoint interval) and :func:`run_to`.
+* :mod:`._format`: what an archive is (format and versions, names, units; the errors) and its
+  layout, built up front;
+* :mod:`._rows`: what grows as a run goes on (rows behind live counters, the two checkpoint
+  slots, the ``/snapshots`` subsample) and reading it back safely;
+* :mod:`._features`: the optional groups ``/history`` and ``/transport``;
+* :mod:`._reader`: :func:`open_archive`, :class:`Archive`, what ``inspect`` reports, the pandas
+  and xarray views;
+* :mod:`._recovery`: what a resume keeps (used by :meth:`ArchiveSink.resume`) and
+  :func:`verify_archive` (``warpratchet verify``);
+* :mod:`._chunking`: :func:`schedule` (chunk length, checkpoint interval) and :func:`run_to`;
+* :mod:`._writer`: :class:`ArchiveSink`, the observer that writes it, building a file under a
+  temporary name and publishing it atomically, and the sink of ``Ensemble.run(archive=)``.
+
+Each imports only modules above it in this list.
 
 Atomic creation, locks, fsyncs and the HDF5 reader options are shared with the other writers
 in :mod:`warpratchet._files`.
 """
 
 from .._files import SWMR_READ_ATTEMPTS
-from .chunking import CHECKPOINT_CHUNKS, CHECKPOINT_SECONDS, MIN_ARCHIVE_CHUNK_STEPS, run_to, schedule
-from .names import (
+from ._chunking import CHECKPOINT_CHUNKS, CHECKPOINT_SECONDS, MIN_ARCHIVE_CHUNK_STEPS, run_to, schedule
+from ._format import (
     FORMAT,
     FORMAT_VERSION,
     KNOWN_FEATURES,
@@ -40,9 +41,9 @@ from .names import (
     ArchiveWarning,
     NonFiniteStateError,
 )
-from .reader import Archive, Snapshots, open_archive
-from .verify import verify_archive
-from .writer import ArchiveSink
+from ._reader import Archive, Snapshots, open_archive
+from ._recovery import verify_archive
+from ._writer import ArchiveSink
 
 __all__ = [
     "FORMAT",

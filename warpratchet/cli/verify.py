@@ -29,7 +29,7 @@ def add(sub) -> None:
 
 def _kind(path: str) -> str | None:
     """``"archive"``, ``"sweep"`` or None (unknown), from the root ``format`` attribute."""
-    from .._files import open_h5
+    from ..files import open_h5
     from ..spec import attr_value
 
     with open_h5(path, locking=False) as f:
@@ -48,7 +48,7 @@ def command(args: argparse.Namespace) -> int:
     with open(path, "rb") as fh:
         if fh.read(8) != _HDF5_SIGNATURE:
             raise UsageError(f"verify: {path} is not an HDF5 file (not an archive or sweep file)")
-    from .._files import claim
+    from ..files import claim
 
     try:  # a file a run is writing may show a write in progress: verify it once the run is done
         os.close(claim(path, exclusive=True))

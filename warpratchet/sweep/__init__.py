@@ -16,7 +16,12 @@ The package has three rooms:
 * :mod:`~warpratchet.sweep.verify`: :func:`verify_sweep` (``warpratchet verify``);
 * :mod:`~warpratchet.sweep.run`: one point (:func:`run_point`), seeds (:func:`point_seed`),
   and the local and Dask executors (:func:`run_sweep`).
+
+The names that need Warp or HDF5 (the runner, the reader, the verifier) are imported on first
+use, so that the paths and the row format load neither.
 """
+
+from typing import Any
 
 from ..spec import SweepSpec
 from .paths import (
@@ -29,7 +34,6 @@ from .paths import (
     line_path,
     maximal_path,
 )
-from .reading import read_definition, read_sweep
 from .records import (
     FORMAT,
     FORMAT_VERSION,
@@ -39,8 +43,6 @@ from .records import (
     ROW_FIELDS,
     TIMING_FIELDS,
 )
-from .run import point_seed, run_point, run_sweep
-from .verify import verify_sweep
 
 __all__ = [
     "SweepSpec",
@@ -66,3 +68,23 @@ __all__ = [
     "READABLE_VERSIONS",
     "ROW_DESCRIPTIONS",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    # Written as import statements, not module names in strings, so that the import test of
+    # docs/architecture.md sees these arrows too.
+    if name in ("point_seed", "run_point", "run_sweep"):
+        from . import run as home
+    elif name in ("read_sweep", "read_definition"):
+        from . import reading as home
+    elif name == "verify_sweep":
+        from . import verify as home
+    else:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(home, name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -1,44 +1,72 @@
-"""What a resume keeps of an archive, and putting it back into the rebuilt file.
+"""Recovering an archive: what a resume keeps of it, and checking every byte of it.
 
-:meth:`ArchiveSink.resume <warpratchet.archive.writer.ArchiveSink.resume>` rebuilds an archive
+What a resume keeps, and putting it back into the rebuilt file:
+:meth:`ArchiveSink.resume <warpratchet.archive.ArchiveSink.resume>` rebuilds an archive
 from what is valid in it: the metadata, the initial state, the series rows and snapshots up to
 the newest good checkpoint, and that checkpoint. :func:`salvage` reads all of it (refusing a
 kernel that would not continue the run bit for bit); :meth:`Salvage.write` puts it into the new
-file, whose layout :func:`~warpratchet.archive.layout.create` has made. Rows past the checkpoint
+file, whose layout :func:`~warpratchet.archive._format.create` has made. Rows past the checkpoint
 are dropped: the resumed run writes them again, identically (only their clocks differ).
 
 Damage costs only what it hit: a series row or snapshot whose checksum fails is
 left out, a damaged initial state of a sampled ensemble is sampled again (the samplers are
 deterministic), otherwise the checkpoint becomes the archive's initial state; each is named in
-one :class:`~warpratchet.archive.names.ArchiveWarning`.
+one :class:`~warpratchet.archive.ArchiveWarning`.
+
+Checking every byte of an archive that can be checked (``warpratchet verify``):
+:func:`verify_archive` reads every dataset whole (so HDF5 verifies the Fletcher-32 checksum of
+every stored chunk, and of the metadata on the way), every attribute, checks that no chunk lies
+past the end of the file, that the counters fit their datasets, that steps grow, and that the
+initial state and every complete checkpoint are finite (release 0.1.0 could checkpoint a
+non-finite state). It reports; it never repairs (``warpratchet resume`` keeps what verifies).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 import warnings
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import h5py
 import numpy as np
 
-from .._h5verify import read_rows
+from .._files import claim
+from .._h5verify import first_line, read_everything, read_rows
 from ..ensemble import STATE_FIELDS, Ensemble
 from ..history import BLOCK_FIELDS, HISTORY_FIELDS, History
 from ..spec import SAMPLERS
-from . import transport as _transport
-from .checks import reading
-from .history_group import history_counts, history_settings, write_history
-from .layout import kernel_constants
-from .names import COUNTERS, FORMAT_VERSION, SERIES_FIELDS, SNAPSHOT_FIELDS, ArchiveError, ArchiveWarning
-from .reader import Archive, Snapshots
-from .rows import fill_rows
+from ._features import (
+    TRANSPORT_FEATURE,
+    history_counts,
+    history_settings,
+    read_transport_rows,
+    write_history,
+    write_transport_slot,
+)
+from ._format import (
+    COUNTERS,
+    FORMAT_VERSION,
+    SERIES_FIELDS,
+    SLOTS,
+    SNAPSHOT_FIELDS,
+    ArchiveError,
+    ArchiveWarning,
+    kernel_constants,
+)
+from ._reader import Archive, Snapshots
+from ._rows import fill_rows, listed, nonfinite, read_counter, reading, slot_step
 
-__all__ = ["Salvage", "salvage"]
+__all__ = [
+    "Salvage",
+    "salvage",
+    "verify_archive",
+]
 
 
+# -- what a resume keeps --------------------------------------------------------------------------
 @dataclass(frozen=True)
 class Salvage:
     """The valid part of an archive, up to its newest good checkpoint (one field per part)."""
@@ -49,7 +77,7 @@ class Salvage:
     state: dict[str, np.ndarray]
     #: The checkpoint's step (the initial step if there is no checkpoint).
     step: int
-    #: Keyword arguments of :func:`~warpratchet.archive.layout.create` (metadata, stored settings,
+    #: Keyword arguments of :func:`~warpratchet.archive._format.create` (metadata, stored settings,
     #: initial state, snapshot indices).
     layout: dict[str, Any]
     #: The rows up to ``step``, keys :data:`SERIES_FIELDS`.
@@ -82,7 +110,7 @@ class Salvage:
             for name in STATE_FIELDS:
                 slot[name].write_direct(np.ascontiguousarray(self.state[name]))
             if self.transport_rows is not None:
-                _transport.write_slot(f, "a", self.ensemble.transport_state())
+                write_transport_slot(f, "a", self.ensemble.transport_state())
             slot["step"][0] = self.step
             f["checkpoint"]["current"][0] = 0
 
@@ -157,8 +185,8 @@ def salvage(path: str | os.PathLike, *, threads: int | None = None, device: str 
         state, step, transport = arc.checkpoint_with_transport()
         ensemble = arc.restore(state, step, threads, device, transport)
         transport_rows = None
-        if _transport.FEATURE in arc.features:
-            rows = _transport.read_rows(arc.h5, path)
+        if TRANSPORT_FEATURE in arc.features:
+            rows = read_transport_rows(arc.h5, path)
             kept_rows = rows["step"] <= step
             transport_rows = {name: values[kept_rows] for name, values in rows.items()}
         series, ok = _readable_rows(arc, "series", SERIES_FIELDS, arc.rows, problems)
@@ -216,3 +244,109 @@ def _history(arc: Archive, step: int, problems: list[str]) -> History:
         indices,
         **history_settings(arc.path, arc.h5, arc.settings),
     )
+
+
+def _increasing(values: np.ndarray) -> bool:
+    return bool(np.all(np.diff(values) > 0))
+
+
+def _check_history(arc: Archive, problems: list[str]) -> None:
+    """The ``/history`` counters fit their datasets and its steps grow."""
+    try:
+        rows, blocks = history_counts(arc.path, arc.h5)
+        g = arc.h5["history"]
+        for count, name, what in ((rows, "step", "history_rows"), (blocks, "block_step", "block_rows")):
+            if count > g[name].shape[0]:
+                problems.append(f"progress/{what} = {count} but /history/{name} has {g[name].shape[0]} rows")
+            elif not _increasing(g[name][:count]):
+                problems.append(f"/history/{name} is not increasing")
+    except (ArchiveError, KeyError, OSError, RuntimeError) as exc:
+        problems.append(f"/history: damaged ({first_line(exc)})")
+
+
+# -- verify ---------------------------------------------------------------------------------------
+@contextlib.contextmanager
+def _alone(path: str) -> Iterator[None]:
+    """Hold an exclusive claim on ``path`` for the block, or ArchiveError naming it "in use"."""
+    if not os.path.exists(path):
+        yield  # Archive names it missing
+        return
+    try:
+        fd = claim(path, exclusive=True)
+    except BlockingIOError as exc:
+        raise ArchiveError(f"{exc}; verify it once the run is done") from None
+    except FileExistsError as exc:
+        raise ArchiveError(str(exc)) from None
+    try:
+        yield
+    finally:
+        os.close(fd)
+
+
+def verify_archive(path: str | os.PathLike) -> tuple[list[str], dict[str, Any]]:
+    """Every problem of the archive at ``path`` (empty: clean) and what was checked.
+
+    Returns
+    -------
+    (problems, checked)
+        ``problems``: one line each (damaged datasets or metadata, counters beyond their data,
+        steps out of order, non-finite states). ``checked``: format, version, counts of datasets,
+        attributes and bytes read.
+
+    Raises
+    ------
+    ArchiveError
+        The file is not a warpratchet archive (or not one this release reads) at all, or it is
+        in use by another process (a run writing it shows writes in progress, not damage:
+        verify it once the run is done).
+    """
+    path = os.fspath(path)
+    problems: list[str] = []
+    # The claim excludes every writer, so HDF5's own lock (which our claim would refuse) is not taken.
+    with _alone(path), Archive(path, locking=False) as arc:
+        counts = read_everything(arc.h5, path, problems)
+        checked = {"format": "warpratchet-archive", "format_version": arc.format_version, **counts}
+        for key, where in COUNTERS[arc.format_version].items():
+            try:
+                value = read_counter(path, arc.h5, where, signed=key == "target")
+            except ArchiveError as exc:
+                problems.append(str(exc).removeprefix(f"{path}: "))
+                continue
+            if key == "target":
+                continue
+            group = "series" if key == "series" else "snapshots"
+            try:
+                size = arc.h5[group]["step"].shape[0]
+            except (OSError, KeyError, RuntimeError) as exc:
+                problems.append(f"/{group}/step: damaged metadata ({first_line(exc)})")
+                continue
+            if value > size:
+                problems.append(f"{where} = {value} but /{group} has {size} rows")
+        if "history" in arc.features:
+            _check_history(arc, problems)
+        for what, read in (
+            ("series", lambda: arc.series["step"]),
+            ("snapshots", lambda: arc.snapshots.steps),
+        ):
+            try:
+                steps = read()
+            except (ArchiveError, KeyError):
+                continue  # already reported as damaged data
+            if not _increasing(steps):
+                problems.append(f"/{what}/step is not increasing")
+        states = [("initial", f"the initial state (step {arc.initial_step})")]
+        for slot in SLOTS:
+            try:
+                step = slot_step(path, arc.h5, slot)
+            except ArchiveError:
+                continue
+            if step >= 0:
+                states.append((f"checkpoint/{slot}", f"the checkpoint at step {step} (slot {slot})"))
+        for group, label in states:
+            try:
+                bad = nonfinite(arc.read_state(group))
+            except (ArchiveError, KeyError):
+                continue  # reported above
+            if bad:
+                problems.append(f"{label} holds non-finite values ({listed(bad)}); resume skips it")
+    return problems, checked

@@ -16,6 +16,22 @@ A writer holds a shared ``flock`` on the file for its lifetime; :meth:`ArchiveSi
 ``force=True`` need an exclusive one, so they refuse to touch a file that a live run (or an open
 reader) is using. The observables written per chunk are those of Eqs. (An) and the FTLE
 (:mod:`warpratchet.observables`).
+
+A new archive and a rebuilt one (:meth:`ArchiveSink.resume`) are both built by
+:func:`build_file`: the free space is checked first, the layout (:func:`._format.create`) and
+any contents are written into ``.NAME.XXXX.tmp`` next to the path, the caller binds the open
+file (SWMR mode, fsync), and only then does the file get its name
+(:func:`warpratchet._files.publish`). A failure (a full disk) leaves no temporary file and the
+old file, if any, untouched.
+
+Reopening an archive for appending (:meth:`ArchiveSink.resume`) rebuilds it from what is valid
+in it (:func:`~warpratchet.archive._recovery.salvage`) under a temporary name and puts it in
+place of the old file atomically, under an exclusive lock.
+
+The archive of ``Ensemble.run(archive=path)`` (:func:`archive_sink`) is a new one, or this run's
+to append to. The run loop knows no sinks; :func:`archive_sink` is registered for the
+``archive=`` keyword (:func:`warpratchet.runloop.register_sink`) by the package's public face,
+``warpratchet``.
 """
 
 from __future__ import annotations
@@ -24,6 +40,7 @@ import contextlib
 import datetime
 import functools
 import os
+import shutil
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -36,21 +53,21 @@ from .._files import (
     check_new_path,
     claim,
     ensure_space,
+    publish,
     storage_errors,
     sync_h5,
+    temporary_beside,
     try_lock,
 )
+from .._h5 import create_h5
 from ..ensemble import STATE_FIELDS, Ensemble, Observer
 from ..errors import check_count, check_optional, check_real
 from ..history import History
 from ..spec import CHECKPOINT_SECONDS, check_checkpoint_seconds, check_setting
-from . import layout
-from . import transport as _transport
-from .building import as_archive_error, build_file
-from .checks import listed, nonfinite
-from .chunking import sink_schedule
-from .history_group import HistoryWriter, check_history
-from .names import (
+from . import _format
+from ._chunking import sink_schedule
+from ._features import HistoryWriter, TransportWriter, check_history, counts_transport, create_transport
+from ._format import (
     COUNTERS,
     FORMAT_VERSION,
     SERIES_FIELDS,
@@ -58,12 +75,17 @@ from .names import (
     ArchiveError,
     NonFiniteStateError,
 )
-from .reopen import reopen
-from .rows import Rows, set_counter
-from .slots import write_slot
-from .snapshots import snapshot_indices, snapshot_row
+from ._reader import open_archive
+from ._recovery import salvage
+from ._rows import Rows, listed, nonfinite, set_counter, snapshot_indices, snapshot_row, write_slot
 
-__all__ = ["ArchiveSink", "NonFiniteStateError"]
+__all__ = [
+    "ArchiveSink",
+    "NonFiniteStateError",
+    "as_archive_error",
+    "build_file",
+    "archive_sink",
+]
 
 
 class ArchiveSink(Observer):
@@ -92,12 +114,12 @@ class ArchiveSink(Observer):
     checkpoint_seconds : float
         Checkpoint also at the chunk end after which the next one would come more than this
         many seconds (wall clock) after the last checkpoint, so that a kill loses at most about
-        this much work (default :data:`~warpratchet.archive.chunking.CHECKPOINT_SECONDS`).
+        this much work (default :data:`~warpratchet.archive.CHECKPOINT_SECONDS`).
     checkpoint_every, chunk_steps : int, optional
-        See :func:`~warpratchet.archive.chunking.schedule`; the default chunk is long enough
-        that a series row costs at most :data:`~warpratchet.archive.chunking.ROW_SHARE` of the
+        See :func:`~warpratchet.archive.schedule`; the default chunk is long enough
+        that a series row costs at most :data:`~warpratchet.archive._chunking.ROW_SHARE` of the
         kernel time at this machine's measured speed
-        (:func:`~warpratchet.archive.chunking.sink_min_chunk_steps`).
+        (:func:`~warpratchet.archive._chunking.sink_min_chunk_steps`).
     threshold : float, optional
         FTLE threshold for the chaotic points of the series (default: per step, the rule
         ``threshold_rule``, :func:`~warpratchet.observables.lyapunov_threshold`).
@@ -162,7 +184,7 @@ class ArchiveSink(Observer):
         try:
             m = min(snapshot_points, ensemble.points) if snapshot_every else 0
             indices = snapshot_indices(ensemble.points, m, ensemble.seed)
-            settings = layout.run_settings(
+            settings = _format.run_settings(
                 ensemble,
                 threshold=threshold,
                 threshold_rule=threshold_rule,
@@ -175,14 +197,14 @@ class ArchiveSink(Observer):
             contents = {
                 "params": ensemble.params,
                 "settings": settings,
-                "versions": layout.software_versions(),
+                "versions": _format.software_versions(),
                 "created": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
                 "initial": initial,
                 "initial_step": ensemble.step,
                 "indices": indices,
                 "history": history,
             }
-            needed = sum(v.nbytes for k, v in initial.items() if np.any(v != layout.FILL[k]))
+            needed = sum(v.nbytes for k, v in initial.items() if np.any(v != _format.FILL[k]))
             self._build(path, contents, ensemble, replace=exists, needed=needed)
         finally:
             if old_fd is not None:
@@ -206,8 +228,8 @@ class ArchiveSink(Observer):
         rows and ``snaps`` snapshots, and take a shared lock on it."""
 
         def fill_all(f: h5py.File) -> None:
-            if _transport.counts_transport(ensemble):
-                _transport.create(f, ensemble.points)
+            if counts_transport(ensemble):
+                create_transport(f, ensemble.points)
             if fill is not None:
                 fill(f)
 
@@ -241,8 +263,8 @@ class ArchiveSink(Observer):
             kept = len(history.rows["step"]), len(history.block_rows["block_step"])
             self._groups.append(HistoryWriter(f, history, *kept))
         self._transport = None
-        if _transport.counts_transport(ensemble):
-            self._transport = _transport.TransportWriter(f)
+        if counts_transport(ensemble):
+            self._transport = TransportWriter(f)
             self._groups.append(self._transport)
         counters = COUNTERS[FORMAT_VERSION]
         self._series = Rows(f["series"], SERIES_FIELDS, f[counters["series"]], rows)
@@ -258,8 +280,57 @@ class ArchiveSink(Observer):
         self.how_to_continue: str | None = None
         self._checkpoint_clock = self._row_clock = time.monotonic()
 
-    #: Reopen an archive for appending from its newest good checkpoint (:func:`.reopen.reopen`).
-    resume = classmethod(reopen)
+    @classmethod
+    def resume(
+        cls, path: str | os.PathLike, *, threads: int | None = None, device: str | None = None
+    ) -> tuple[ArchiveSink, Ensemble]:
+        """Reopen an archive for appending, from its newest good checkpoint.
+
+        The archive is rebuilt under a temporary name from what is valid (metadata, initial
+        state, series rows and snapshots up to the checkpoint, the checkpoint; see
+        :mod:`warpratchet.archive._recovery`) and atomically put in place of the old file, so a
+        kill during ``resume`` loses nothing either. A damaged checkpoint, snapshot, series row
+        or initial state is skipped and named in an :class:`ArchiveWarning`. A format v1 archive
+        is rebuilt in today's format.
+
+        Returns
+        -------
+        (ArchiveSink, Ensemble)
+            The sink and the ensemble restored bit for bit at the checkpoint step; continue with
+            ``run_to(ensemble, total, [sink], sink.chunk_steps)``.
+
+        Raises
+        ------
+        ArchiveError
+            Missing, unreadable or incompatible archive (format version, renormalisation
+            constants of the kernel), or a file in use by another process.
+        """
+        path = os.fspath(path)
+        if not os.path.exists(path):
+            raise ArchiveError(f"{path}: no such archive")
+        try:
+            old_fd = claim(path, exclusive=True)
+        except (FileNotFoundError, FileExistsError, BlockingIOError) as exc:
+            raise ArchiveError(str(exc)) from None
+        try:
+            old = salvage(path, threads=threads, device=device)
+            sink = cls.__new__(cls)
+            sink._build(
+                path,
+                old.layout,
+                old.ensemble,
+                replace=True,
+                keep_mode=True,
+                fill=old.write,
+                rows=old.rows,
+                snaps=len(old.snapshots),
+                needed=os.path.getsize(path),  # a rebuilt copy is about as large
+            )
+        finally:
+            os.close(old_fd)
+        sink.checkpoint_step = old.step
+        sink._last_snapshot = old.step
+        return sink, old.ensemble
 
     # -- the observer -----------------------------------------------------------------------------
     @contextlib.contextmanager
@@ -421,3 +492,86 @@ class ArchiveSink(Observer):
         return (
             f"ArchiveSink({self.path!r}, rows={self._series.count}, checkpoint_step={self.checkpoint_step})"
         )
+
+
+# -- building a file, published atomically --------------------------------------------------------
+@contextlib.contextmanager
+def as_archive_error() -> Iterator[None]:
+    """The file-safety refusals of :mod:`warpratchet._files` as :class:`ArchiveError` lines."""
+    try:
+        yield
+    except (FileExistsError, FileNotFoundError, BlockingIOError) as exc:
+        raise ArchiveError(str(exc)) from None
+
+
+def build_file(
+    path: str,
+    contents: dict[str, Any],
+    start: Callable[[h5py.File], None],
+    *,
+    replace: bool,
+    keep_mode: bool = False,
+    fill: Callable[[h5py.File], None] | None = None,
+    needed: int = 0,
+) -> None:
+    """Create the layout under a temporary name, ``fill`` it, ``start`` it, publish it atomically.
+
+    ``needed`` bytes must be free first; ``contents`` are the keyword arguments of
+    :func:`._format.create`; ``start`` binds the open file to its writer (and leaves it open);
+    ``keep_mode`` keeps the permissions of the file at ``path`` (a rebuilt archive).
+    """
+    with storage_errors(path, "create"):
+        ensure_space(path, needed, "the new archive")
+    with storage_errors(path, "create"), temporary_beside(path) as tmp:
+        if keep_mode:
+            with contextlib.suppress(OSError):
+                shutil.copymode(path, tmp)  # a rebuilt archive keeps the user's permissions
+        f = create_h5(tmp)  # paged: a kill never tears a row chunk or a counter
+        try:
+            _format.create(f, **contents)
+            if fill is not None:
+                fill(f)
+            start(f)
+            with as_archive_error():
+                publish(tmp, path, replace=replace)
+        except BaseException:
+            abandon_h5(f)  # a plain close would retry a failed write (and crash at exit)
+            raise
+
+
+# -- the sink of Ensemble.run(archive=) -----------------------------------------------------------
+def archive_sink(ensemble: Any, path: str | os.PathLike, chunk_steps: int | None) -> Any:
+    """The ArchiveSink of ``Ensemble.run(archive=path)``: a new archive, or this run's to append to.
+
+    A new archive keeps the run's :class:`~warpratchet.history.History` (``sink.history``, an
+    observer of the run too).
+
+    An existing file is appended to only if it is an archive whose checkpoint holds exactly this
+    ensemble (same step, every state array equal bit for bit): what a previous ``run(...,
+    archive=path)`` of this ensemble leaves when it completes. Anything else is refused, so an
+    archive never mixes two runs.
+    """
+    if not os.path.lexists(path):
+        return ArchiveSink(path, ensemble, chunk_steps=chunk_steps, threshold=None, history=History())
+    with open_archive(path) as arc:
+        state, step = arc.checkpoint()
+        params = arc.params
+    same = (
+        params == ensemble.params
+        and step == ensemble.step
+        and all(np.array_equal(state[name], ensemble.array(name)) for name in state)
+    )
+    if not same:
+        raise ValueError(
+            f"{os.fspath(path)} exists and does not hold this ensemble at step {ensemble.step} "
+            f"(its checkpoint is at step {step}); choose a new path, or continue that run from "
+            "open_archive(path).ensemble()"
+        )
+    sink, _ = ArchiveSink.resume(path, threads=ensemble.threads, device=ensemble.device)
+    if chunk_steps is not None and chunk_steps != sink.chunk_steps:
+        sink.close()
+        raise ValueError(
+            f"chunk_steps = {chunk_steps} differs from the archive's chunk_steps = {sink.chunk_steps}"
+        )
+    sink.ensemble = ensemble  # the restored twin equals this ensemble bit for bit (checked above)
+    return sink

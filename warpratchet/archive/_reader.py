@@ -1,14 +1,29 @@
-"""Reading an archive: :func:`open_archive`, :class:`Archive`, :class:`Snapshots`.
+"""Reading an archive: :func:`open_archive`, :class:`Archive`, what ``inspect`` reports, and the
+pandas and xarray views.
 
 A reader is safe while a run is still writing the file (HDF5 SWMR; :func:`warpratchet._files.open_h5`
 opens a file a writer has open in SWMR-read mode): metadata are read on opening, while
 ``series``, ``snapshots`` and the checkpoint slots are read afresh on every access and only up
 to the live counters, which the writer raises after the rows are on disk. A slot's ``step`` is
 read before and after its data (a sequence lock), so a checkpoint the writer recycles meanwhile
-is never returned. Any HDF5 failure becomes one :class:`~warpratchet.archive.names.ArchiveError`
+is never returned. Any HDF5 failure becomes one :class:`~warpratchet.archive.ArchiveError`
 line; a damaged or non-finite checkpoint is skipped with an
-:class:`~warpratchet.archive.names.ArchiveWarning` naming what was recovered instead. Format
-versions 1 and 2 are read (:mod:`.names`).
+:class:`~warpratchet.archive.ArchiveWarning` naming what was recovered instead. Format
+versions 1 and 2 are read (:mod:`._format`).
+
+How far an archived run is and when it will be done (:func:`estimate`, for ``inspect``): pure
+NumPy on the series of :class:`Archive`. The target step is stored (``/progress/target_step``,
+format v2), the speed is measured from the kernel wall times of the most recent rows.
+
+An archive as a ``pandas.DataFrame`` or an ``xarray.Dataset`` (the optional ``xarray`` extra,
+:func:`series_frame`, :func:`dataset`). Units and descriptions come from the file's
+``units``/``long_name`` attributes (format v2) or, for format v1 files that lack them, from
+:mod:`warpratchet.glossary`. The file itself also opens directly: ``xarray.open_dataset(path,
+group="series", engine="h5netcdf")`` (format v2). Both routes give the same dimension names (the
+names netCDF readers give the file's dimension scales: ``step``, ``indices``, ``block_step``,
+``block_indices``) and decode ``unix_time`` alike (``datetime64``, CF time units).
+:func:`dataset` adds one derived variable to the snapshots, the unwrapped momentum
+``p_unwrapped`` (:func:`unwrapped_momentum`).
 """
 
 from __future__ import annotations
@@ -23,25 +38,51 @@ import numpy as np
 from .._files import open_h5
 from .._h5verify import first_line
 from ..ensemble import Ensemble
-from ..history import History
+from ..history import HISTORY_FIELDS, History
 from ..spec import SAMPLERS, RunSpec, attr_value, params_of
-from . import progress
-from . import transport as _transport
-from .checks import TEXT_CHECKSUM, check_text, read_counter, reading, valid_rows
-from .history_group import history_info, read_history
-from .layout import read_settings
-from .names import (
+from ._features import (
+    TRANSPORT_FEATURE,
+    history_info,
+    read_history,
+    read_transport_rows,
+    read_transport_slot,
+    restore_transport,
+)
+from ._format import (
     COUNTERS,
     FORMAT,
     READABLE_VERSIONS,
     SERIES_FIELDS,
+    SNAPSHOT_FIELDS,
+    TEXT_CHECKSUM,
     ArchiveError,
     ArchiveWarning,
+    describe,
+    read_settings,
 )
-from .slots import newest_good, read_state, slot_steps
-from .snapshots import Snapshots, read_snapshots
+from ._rows import (
+    Snapshots,
+    check_text,
+    newest_good,
+    read_counter,
+    read_snapshots,
+    read_state,
+    reading,
+    slot_steps,
+    valid_rows,
+)
 
-__all__ = ["Snapshots", "Archive", "open_archive"]
+__all__ = [
+    "Snapshots",
+    "Archive",
+    "open_archive",
+    "RECENT_ROWS",
+    "estimate",
+    "attributes",
+    "series_frame",
+    "dataset",
+    "unwrapped_momentum",
+]
 
 
 class Archive:
@@ -169,7 +210,7 @@ class Archive:
         return read_snapshots(self.path, self._file, self.snapshot_count)
 
     def _slot_steps(self, problems: list[str] | None = None) -> list[tuple[int, str]]:
-        """Complete slots as ``(step, name)``, newest first (:func:`.slots.slot_steps`)."""
+        """Complete slots as ``(step, name)``, newest first (:func:`._rows.slot_steps`)."""
         return slot_steps(self.path, self._file, problems)
 
     @property
@@ -207,10 +248,10 @@ class Archive:
         state of that checkpoint (None for the initial state: counting starts there; a slot whose
         transport state is unreadable is skipped like a damaged one)."""
         read_extra = None
-        if _transport.FEATURE in self.features:
+        if TRANSPORT_FEATURE in self.features:
 
             def read_extra(slot: str) -> Any:
-                return _transport.read_slot(self._file, self.path, slot, self.points)
+                return read_transport_slot(self._file, self.path, slot, self.points)
 
         found, problems = newest_good(self.path, self._file, self.points, read_extra)
         if found is not None:
@@ -237,10 +278,10 @@ class Archive:
         ``transport`` feature: :func:`.transport.restore`, counting from ``transport``)."""
         init, seed = self.settings["init"], self.settings["seed"]
         kwargs = {"device": device, "threads": threads, "sampler": init, "seed": seed}
-        if _transport.FEATURE not in self.features:
+        if TRANSPORT_FEATURE not in self.features:
             return Ensemble.from_state(self.params, state, step, **kwargs)
         settings = self.settings
-        return _transport.restore(
+        return restore_transport(
             self.params, state, step, transport, settings["threshold"], settings["threshold_rule"], **kwargs
         )
 
@@ -253,9 +294,9 @@ class Archive:
     def transport(self) -> dict[str, np.ndarray] | None:
         """The ``/transport`` rows (``step`` ``(R,)``, ``counts`` ``(R, 3, BINS)``: completed return
         gaps and flights per log2 bin at each chunk end), or None without the feature."""
-        if _transport.FEATURE not in self.features:
+        if TRANSPORT_FEATURE not in self.features:
             return None
-        return _transport.read_rows(self._file, self.path)
+        return read_transport_rows(self._file, self.path)
 
     @property
     def history(self) -> History | None:
@@ -292,15 +333,13 @@ class Archive:
             "snapshots": self.snapshot_count,
             "latest": _last_row(series),
             "history": history_info(self.history),
-            **progress.estimate(series, self.target_step, self.initial_step, checkpoint_step),
+            **estimate(series, self.target_step, self.initial_step, checkpoint_step),
         }
 
     # -- exports ----------------------------------------------------------------------------------
     def to_pandas(self, group: str = "series"):
         """``series`` (or the ``history`` rows) as a ``pandas.DataFrame`` indexed by ``step`` (needs
         ``warpratchet[xarray]``)."""
-        from .export import series_frame
-
         return series_frame(self, group)
 
     def to_xarray(self, group: str = "series"):
@@ -309,8 +348,6 @@ class Archive:
         ``block_indices``) as an ``xarray.Dataset`` with units, long names and the file's global
         attributes, named and decoded as xarray's h5netcdf engine reads the file (needs
         ``warpratchet[xarray]``)."""
-        from .export import dataset
-
         return dataset(self, group)
 
     def close(self) -> None:
@@ -341,3 +378,190 @@ def open_archive(path: str | os.PathLike) -> Archive:
     a missing, truncated, corrupted or incompatible file.
     """
     return Archive(path)
+
+
+# -- how far a run is -----------------------------------------------------------------------------
+#: Rows whose wall times give the speed: recent enough to follow a change of machine or load.
+RECENT_ROWS = 16
+
+
+def estimate(
+    series: dict[str, np.ndarray], target: int | None, initial_step: int, checkpoint_step: int | None = None
+) -> dict[str, Any]:
+    """Target step, fraction done (kept, and written), speed and estimated seconds to the target.
+
+    Parameters
+    ----------
+    series : dict of ndarray
+        ``step`` and ``wall_time`` (kernel seconds) of each row, shape ``(rows,)``.
+    target : int or None
+        The step the run aims at (None: not recorded, as in format v1).
+    initial_step : int
+        The archive's first step (the step of ``/initial``).
+    checkpoint_step : int, optional
+        The verified checkpoint's step: where a rerun continues (default: the newest row's).
+
+    Returns
+    -------
+    dict
+        ``target_step``; ``done``, the fraction of the steps from ``initial_step`` to the target
+        that the checkpoint keeps (what a rerun does not do again), and ``latest_done``, the
+        fraction the newest row has reached (a live run's progress), both in [0, 1];
+        ``steps_per_second`` (kernel speed over the last :data:`RECENT_ROWS` rows) and
+        ``eta_seconds`` (kernel time from the newest row to the target at that speed; 0 when
+        done); None where unknown.
+    """
+    out: dict[str, Any] = {
+        "target_step": target,
+        "done": None,
+        "latest_done": None,
+        "steps_per_second": None,
+        "eta_seconds": None,
+    }
+    steps = np.asarray(series["step"], dtype=np.int64)
+    last = int(steps[-1]) if steps.size else initial_step
+    kept = last if checkpoint_step is None else checkpoint_step
+    if steps.size:
+        gained = np.diff(steps, prepend=initial_step)[-RECENT_ROWS:]
+        seconds = float(np.sum(series["wall_time"][-RECENT_ROWS:]))
+        if seconds > 0 and np.all(gained > 0):
+            out["steps_per_second"] = float(np.sum(gained)) / seconds
+    if target is None or target <= initial_step:
+        return out
+
+    def fraction(step: int) -> float:
+        return min(1.0, max(0.0, (step - initial_step) / (target - initial_step)))
+
+    out["done"], out["latest_done"] = fraction(kept), fraction(last)
+    if kept >= target:
+        out["eta_seconds"] = 0.0
+    elif out["steps_per_second"]:
+        # From the newest row (a live run's); a stopped run past its target restarts at the checkpoint.
+        out["eta_seconds"] = (target - (last if last < target else kept)) / out["steps_per_second"]
+    return out
+
+
+# -- pandas and xarray views ----------------------------------------------------------------------
+def _need(module: str) -> Any:
+    try:
+        return __import__(module)
+    except ImportError:
+        raise ImportError(f"this export needs {module}: pip install 'warpratchet[xarray]'") from None
+
+
+def attributes(arc, group: str, name: str) -> dict[str, str]:
+    """``units`` and ``long_name`` of ``/group/name`` as stored (format v1: as documented)."""
+    attrs = arc.h5[group][name].attrs
+    if "units" in attrs and "long_name" in attrs:
+        return {"units": str(attr_value(attrs["units"])), "long_name": str(attr_value(attrs["long_name"]))}
+    units, long_name = describe(group, name)
+    return {"units": units, "long_name": long_name}
+
+
+def _history(arc):
+    """The archive's :class:`~warpratchet.history.History` (ValueError for an archive without one)."""
+    history = arc.history
+    if history is None:
+        raise ValueError(f"{arc.path} has no history (its features: {', '.join(arc.features) or 'none'})")
+    return history
+
+
+def _group_rows(arc, group: str) -> tuple[dict, tuple[str, ...]]:
+    """The rows of ``series`` or ``history`` and their field names (``step`` first)."""
+    if group == "series":
+        return arc.series, SERIES_FIELDS
+    if group == "history":
+        return {k: np.asarray(v) for k, v in _history(arc).rows.items()}, HISTORY_FIELDS
+    raise ValueError(f"group = {group!r} is not 'series' or 'history'")
+
+
+def series_frame(arc, group: str = "series"):
+    """``arc.series`` (or the history rows) as a DataFrame indexed by ``step``; ``frame.attrs`` holds
+    units and long names."""
+    pd = _need("pandas")
+    series, fields = _group_rows(arc, group)
+    frame = pd.DataFrame({name: series[name] for name in fields[1:]}, index=series["step"])
+    frame.index.name = "step"
+    described = {name: attributes(arc, group, name) for name in fields}
+    frame.attrs = {
+        "units": {name: d["units"] for name, d in described.items()},
+        "long_name": {name: d["long_name"] for name, d in described.items()},
+        "path": arc.path,
+    }
+    return frame
+
+
+def unwrapped_momentum(p0: np.ndarray, steps: np.ndarray, p: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """The momentum ``p_n`` of snapshot points, not reduced mod 1: ``p0 + n A_n`` (Eq. An).
+
+    ``p0`` ``(M,)`` is the points' initial momentum (``/initial/p0`` at ``/snapshots/indices``),
+    ``steps`` ``(S,)``, ``p`` (mod 1) and ``A`` ``(S, M)`` the snapshots'. ``p0 + n A_n`` carries
+    the rounding of ``A_n``; its whole part is exact once rounded against the stored ``p`` mod 1,
+    so the result is ``round(p0 + n A_n - p) + p``, the stored fraction unchanged.
+    """
+    approx = p0[None, :] + steps[:, None].astype(np.float64) * A
+    return np.round(approx - p) + p
+
+
+def _dataset_attrs(arc) -> dict[str, Any]:
+    """The Dataset's attributes: the file's CF global attributes (format 2.1) and the map's parameters."""
+    skip = {"format", "format_version", "format_minor", "features", "text_crc32"}
+    stored = {k: attr_value(v) for k, v in arc.h5.attrs.items() if k not in skip}
+    return {**stored, "path": arc.path, **arc.params.as_dict()}
+
+
+def dataset(arc, group: str = "series"):
+    """``/series`` (dimension ``step``), ``/snapshots`` (``step``, ``indices``) or ``/history``
+    (``step``; block gains on ``block_step``, ``block_indices``) as a Dataset, named and decoded as
+    ``xarray.open_dataset(path, group=group, engine="h5netcdf")`` names and decodes the file."""
+    xr = _need("xarray")
+    attrs = _dataset_attrs(arc)
+    if group == "series":
+        series = arc.series
+        coords = {"step": ("step", series["step"], attributes(arc, "series", "step"))}
+        data = {name: ("step", series[name], attributes(arc, "series", name)) for name in SERIES_FIELDS[1:]}
+        return xr.decode_cf(xr.Dataset(data, coords=coords, attrs=attrs))
+    if group == "snapshots":
+        snaps = arc.snapshots
+        dims = ("step", "indices")
+        coords = {
+            "step": ("step", snaps.steps, attributes(arc, "snapshots", "step")),
+            "indices": ("indices", snaps.indices, attributes(arc, "snapshots", "indices")),
+        }
+        data = {
+            name: (dims, getattr(snaps, name), attributes(arc, "snapshots", name)) for name in SNAPSHOT_FIELDS
+        }
+        p0 = arc.initial["p0"][snaps.indices]
+        units, long_name = describe("snapshots", "p_unwrapped")
+        data["p_unwrapped"] = (
+            dims,
+            unwrapped_momentum(p0, snaps.steps, snaps.p, snaps.A),
+            {"units": units, "long_name": long_name},
+        )
+        return xr.Dataset(data, coords=coords, attrs=attrs)
+    if group == "history":
+        history = _history(arc)
+        rows, blocks = history.rows, history.block_rows
+        coords = {
+            "step": ("step", np.asarray(rows["step"]), attributes(arc, "history", "step")),
+            "block_step": (
+                "block_step",
+                np.asarray(blocks["block_step"]),
+                attributes(arc, "history", "block_step"),
+            ),
+            "block_indices": (
+                "block_indices",
+                np.asarray(history.block_indices),
+                attributes(arc, "history", "block_indices"),
+            ),
+        }
+        width = len(history.block_indices)
+        data = {
+            name: ("step", np.asarray(rows[name]), attributes(arc, "history", name))
+            for name in HISTORY_FIELDS[1:]
+        }
+        for name in ("block_gain", "block_ftle"):
+            values = np.asarray(blocks[name], dtype=np.float64).reshape(len(blocks["block_step"]), width)
+            data[name] = (("block_step", "block_indices"), values, attributes(arc, "history", name))
+        return xr.Dataset(data, coords=coords, attrs=attrs)
+    raise ValueError(f"group = {group!r} is not 'series', 'snapshots' or 'history'")

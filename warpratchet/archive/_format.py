@@ -1,10 +1,33 @@
-"""Building an archive: the ``/settings`` attributes, ``/versions``, and the whole layout up front.
+"""What an archive is: format and versions, names and units, and the whole layout built up front.
 
-:func:`settings_attrs` and :func:`read_settings` translate a run's settings to and from the
-``/settings`` attributes (RunSpec's names, :meth:`warpratchet.spec.RunSpec.to_attrs`, plus the
-archive's own schedule and the kernel's constants); :func:`create` builds every group and
-dataset of ``docs/archive.md`` (names in :mod:`.names`) in a new file. The writer and the
-reader use the layout only through these two modules.
+The one place that names the layout of ``docs/archive.md``: format and versions, groups,
+datasets, their units and descriptions. Version 2 (this release) differs
+from version 1 (warpratchet 0.1.0, still read) in:
+
+* the file format: HDF5 1.10 object formats (readable by the HDF5 1.10 tools), not "latest";
+* ``/settings``: RunSpec's names (``init``, not ``sampler``; a run-dependent default such as the
+  threshold or a missing seed is an absent attribute, not NaN or -1);
+* the live counters moved from ``/series/n_valid`` and ``/snapshots/n_valid`` to ``/progress``
+  (``series_rows``, ``snapshot_rows``), joined by ``target_step``; ``/series`` and
+  ``/snapshots`` hold only data, so netCDF readers see their dimensions and no phony ones;
+* every dataset has ``units`` and ``long_name``; ``/series/step`` and ``/snapshots/step`` are
+  HDF5 dimension scales attached to their groups' datasets, ``/snapshots/indices`` too;
+* a closed archive holds exactly its valid rows (trimmed at close);
+* ``/@features``: the optional groups present (:data:`KNOWN_FEATURES`).
+
+Minor version 1 of version 2 (root attribute ``format_minor``; absent: 0) only adds what older
+readers ignore: CF global attributes (``Conventions``, ``title``, ``history``, ``source``,
+``references``) with the map's parameters and the theory's ``A_theory`` at the root and on
+``/series``; string attributes as variable-length UTF-8 (h5py reads them as ``str``); the
+netCDF dimensions ``point`` (``/initial``, ``/checkpoint``) and ``counter`` (the ``(1,)``
+counters), so that no dataset has an unnamed dimension.
+
+Building an archive: :func:`settings_attrs` and :func:`read_settings` translate a run's
+settings to and from the ``/settings`` attributes (RunSpec's names,
+:meth:`warpratchet.spec.RunSpec.to_attrs`, plus the archive's own schedule and the kernel's
+constants); :func:`create` builds every group and
+dataset of ``docs/archive.md`` in a new file. The writer and the reader use the layout only
+through this module.
 
 Every dataset is chunked and carries the Fletcher-32 filter and ``units``/``long_name``
 attributes; mutable scalars (the ``/progress`` counters, ``current``, a slot's ``step``) are
@@ -20,6 +43,7 @@ from __future__ import annotations
 import functools
 import math
 import platform
+import zlib
 from importlib.metadata import PackageNotFoundError
 from importlib.metadata import version as _dist_version
 from typing import Any
@@ -28,27 +52,30 @@ import h5py
 import numpy as np
 from h5py import h5a, h5g, h5p, h5s, h5t
 
-from .. import theory
+from .. import glossary, theory
 from .._files import compact_links
 from ..ensemble import RENORM_CHECK_EVERY, RENORM_THRESHOLD, STATE_FIELDS
+from ..errors import FileFormatError, NonFiniteStateError  # NonFiniteStateError: re-exported
 from ..paper import REFERENCE
 from ..params import MapParams
 from ..spec import LEGACY_NAMES, attr_value, check_setting
-from .checks import TEXT_CHECKSUM, text_checksum
-from .names import (
-    COUNTERS,
-    FORMAT,
-    FORMAT_MINOR,
-    FORMAT_VERSION,
-    HISTORY_COUNTERS,
-    INT_SERIES,
-    SERIES_FIELDS,
-    SLOTS,
-    SNAPSHOT_FIELDS,
-    describe,
-)
 
 __all__ = [
+    "FORMAT",
+    "FORMAT_VERSION",
+    "FORMAT_MINOR",
+    "READABLE_VERSIONS",
+    "SERIES_FIELDS",
+    "INT_SERIES",
+    "SNAPSHOT_FIELDS",
+    "SLOTS",
+    "COUNTERS",
+    "HISTORY_COUNTERS",
+    "KNOWN_FEATURES",
+    "describe",
+    "ArchiveError",
+    "ArchiveWarning",
+    "NonFiniteStateError",
     "RUN_SETTINGS",
     "ARCHIVE_SETTINGS",
     "settings_attrs",
@@ -60,7 +87,84 @@ __all__ = [
     "global_attrs",
     "create",
     "seal",
+    "TEXT_CHECKSUM",
+    "text_checksum",
 ]
+
+
+#: Format name, root attribute ``format``.
+FORMAT = "warpratchet-archive"
+#: Layout version written, root attribute ``format_version``.
+FORMAT_VERSION = 2
+#: Additions within version 2 that older readers ignore, root attribute ``format_minor``
+#: (absent: 0; module docstring).
+FORMAT_MINOR = 1
+#: Layout versions this release reads (and resumes: a resumed version-1 archive is rebuilt as 2).
+READABLE_VERSIONS = (1, 2)
+
+#: Columns of ``/series`` (one row per chunk); ``step`` and ``chaotic_points`` are int64.
+SERIES_FIELDS = (
+    "step",
+    "A",
+    "A_stderr",
+    "lyapunov",
+    "lyapunov_std",
+    "lyapunov_min",
+    "chaotic_fraction",
+    "chaotic_points",
+    "threshold",
+    "wall_time",
+    "unix_time",
+)
+INT_SERIES = ("step", "chaotic_points")
+#: Per-point arrays of ``/snapshots``, each ``(S, M)``.
+SNAPSHOT_FIELDS = ("x", "p", "ftle", "A")
+#: The two checkpoint slots, ``/checkpoint/a`` and ``/checkpoint/b`` (``current`` = 0 or 1).
+SLOTS = ("a", "b")
+
+#: Where each live counter is, by format version: the number of valid series rows and snapshots
+#: (the writer raises them after the rows are on disk) and the step the running session aims at.
+COUNTERS = {
+    1: {"series": "series/n_valid", "snapshots": "snapshots/n_valid"},
+    2: {
+        "series": "progress/series_rows",
+        "snapshots": "progress/snapshot_rows",
+        "target": "progress/target_step",
+    },
+}
+
+#: The live counters of the optional ``/history`` group (feature ``history``): valid rows and
+#: valid block records, raised after them like the others.
+HISTORY_COUNTERS = {"rows": "progress/history_rows", "blocks": "progress/block_rows"}
+
+#: Optional groups a later release may add without a new major version, as named in the root
+#: attribute ``features`` (a comma-separated list, empty for none). A reader ignores groups it
+#: does not know and reads a feature only when it is listed; a change that an older reader would
+#: misread (a renamed or reinterpreted dataset) bumps ``format_version`` instead.
+KNOWN_FEATURES = {
+    "history": "/history: log-spaced rows of A_n, its standard error, sigma, the chaotic fraction "
+    "and variances, and block gains of a subsample",
+    "transport": "/transport: momentum histograms",
+}
+
+
+def describe(group: str, name: str) -> tuple[str, str]:
+    """``(units, long_name)`` of dataset ``name`` of ``group`` (``"initial"``, ``"checkpoint/a"``, ...).
+
+    Worded in :mod:`warpratchet.glossary`, with the sweep files' columns.
+    """
+    if group.startswith("checkpoint/"):
+        group = "checkpoint"  # both slots hold the same datasets
+    return glossary.describe(group, name)
+
+
+class ArchiveError(FileFormatError):
+    """An archive that cannot be used: missing, truncated, corrupted, incompatible or in use."""
+
+
+class ArchiveWarning(UserWarning):
+    """Something was recovered, e.g. an older checkpoint because the newest one is damaged."""
+
 
 #: The RunSpec settings an archive stores (``steps`` is progress, ``/progress/target_step``:
 #: a resume moves it).
@@ -96,6 +200,9 @@ FILL = {"x": 0.0, "q": 0.0, "winding": 0, "p0": 0.0, "dx": 1.0, "dp": 0.0, "log_
 #: cannot tear the rewrite; a chunk over a page would span two and could be torn again.
 ROW_CHUNK = 256
 STATE_CHUNK = 1 << 17  # 1 MiB of float64 per chunk
+#: The numeric attribute (in the checksummed object header) that seals a group's string
+#: attributes: their text lives in HDF5's global heap, which carries no checksum of its own.
+TEXT_CHECKSUM = "text_crc32"
 
 
 # -- /settings and /versions ------------------------------------------------------------------------
@@ -298,8 +405,14 @@ def create(
         _history_group(f, history)
 
 
+def text_checksum(attrs: dict[str, Any]) -> int:
+    """CRC-32 of the string attributes in ``attrs``: ``key=value`` lines sorted by key."""
+    lines = sorted(f"{k}={v}" for k, v in attrs.items() if isinstance(v, str) and k != TEXT_CHECKSUM)
+    return zlib.crc32("\n".join(lines).encode())
+
+
 def seal(obj: h5py.Group) -> None:
-    """Store the :data:`~.checks.TEXT_CHECKSUM` of the string attributes of ``obj`` (after their last
+    """Store the :data:`TEXT_CHECKSUM` of the string attributes of ``obj`` (after their last
     change)."""
     _set_attrs(obj, {TEXT_CHECKSUM: text_checksum(dict(obj.attrs.items()))})
 
@@ -352,7 +465,7 @@ def _sampled_rows(
 
 
 def _dataset(group: h5py.Group, name: str, **kw: Any) -> h5py.Dataset:
-    """A chunked, checksummed dataset with the ``units`` and ``long_name`` of :func:`.names.describe`."""
+    """A chunked, checksummed dataset with the ``units`` and ``long_name`` of :func:`describe`."""
     ds = group.create_dataset(name, fletcher32=True, **kw)
     units, long_name = describe(group.name.lstrip("/"), name)
     _set_attrs(ds, {"units": units, "long_name": long_name})
