@@ -16,6 +16,11 @@ state (the registers spill). So the CPU hooks split the work:
   CPU has AVX-512 and GFNI, each full block of 8 rows is decoded at once instead
   (:mod:`.transport_block`).
 
+On the AVX2 path (16 lanes in 16 registers) a hook after each step spills the lanes around it, so
+there the steps between two checks run in one call with the recording inside the loop
+(:data:`RECORD_CPU`: a row is one byte per lane, ``gain + 8 in_strip``), and the rows are decoded
+with the events as byte masks (``_ROWS_AVX2``); the counts are the same.
+
 Trackers: ``age`` (steps since the last visit to B), ``flen`` (steps of the run in progress) are
 bytes kept at most :data:`CAP` after each block, the excess carried exactly in int64 (``*_extra``);
 ``fcode`` is the gain code of the run in progress. The carry arrays hold absolute global steps;
