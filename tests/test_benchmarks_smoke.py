@@ -1,5 +1,6 @@
 """Smoke tests of ``benchmarks/throughput.py`` (issue 2, item 7; issue 12, item 4) and of
-``benchmarks/indicators_overhead.py`` (issue 12: the indicators kernel against ``advance_map``).
+``benchmarks/indicators_overhead.py`` (issue 12: the indicators kernel against ``advance_map``),
+``kernel_ceilings.py`` and the other benchmarks' ``--quick`` runs.
 
 Runs ``throughput.py --quick --json`` once in a subprocess (20 000 points x 1000 steps; about
 5-10 s with the Numba JIT and the gcc build) and checks the JSON structure, the ratios, the
@@ -11,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import platform
 import shutil
 import subprocess
 import sys
@@ -189,6 +191,24 @@ def test_indicators_overhead_benchmark_runs_and_the_orbit_is_advance_maps():
             spread = row[key]
             assert 0 < spread["min"] <= spread["median"] <= spread["max"]
         assert row["ratio_of_best"] > 0 and row["map_point_steps_per_second"] > 0
+
+
+@pytest.mark.skipif(
+    shutil.which("gcc") is None or platform.machine() not in ("x86_64", "AMD64"),
+    reason="the hand-vectorised C needs gcc and an x86-64 CPU",
+)
+def test_kernel_ceilings_benchmark_runs_and_every_kernel_follows_the_c():
+    """Smoke test of ``benchmarks/kernel_ceilings.py --quick`` (structure; no timing assertions):
+    the C's end state is the map kernel's and the three kernels' orbits are the same, bit for bit."""
+    report = quick_benchmark("kernel_ceilings.py")
+    assert report["targets"] == {"map": 0.8, "indicators": 0.7, "transport": 0.7}
+    assert [row["threads"] for row in report["rows"]][0] == 1
+    for row in report["rows"]:
+        assert row["bitwise_equal"] is True
+        assert all(rate > 0 for rate in row["best_rate"].values())
+        for name in report["targets"]:
+            for key in (f"{name}_vs_c_wall", f"{name}_vs_c_cpu"):
+                assert len(row[key]) == report["rounds"] and all(r > 0 for r in row[key])
 
 
 def test_end_to_end_benchmark_runs_and_reports_the_kernels_numbers():

@@ -85,10 +85,20 @@ class Variant:
     point_load: Any = None
     point_after_check: Any = None
     point_store: Any = None
+    #: ``cpu_steps(force) -> wp.func (ref accumulators, ref Lanes, Coefficients, count: int32,
+    #: global_step: int64)``: with the CPU body, ``count`` steps from ``global_step`` with the
+    #: variant's per-step work inside them (:func:`.step.cpu_steps_source`), in place of the body's
+    #: ``step`` and ``cpu_after_step`` one step at a time.
+    cpu_steps: Any = None
 
 
 @wp.func
 def _no_step_work(acc: Any, s: Any, global_step: wp.int64):
+    pass
+
+
+@wp.func
+def _no_steps(acc: Any, s: Any, p: Coefficients, count: wp.int32, global_step: wp.int64):
     pass
 
 
@@ -97,15 +107,20 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
     check_shift = wp.int64(RENORM_CHECK_EVERY.bit_length() - 1)
     after_step, after_check, store = variant.after_step, variant.after_check, variant.store
     load = variant.load
+    variant_steps = None
     if body.name == CPU.name:
         after_step = variant.cpu_after_step or after_step
         after_check = variant.cpu_after_check or after_check
         load = variant.cpu_load or load
         store = variant.cpu_store or store
+        if variant.cpu_steps is not None:
+            variant_steps = variant.cpu_steps(body.force)
 
-    # Without per-step work the CPU body runs the steps between two checks in one call; the
-    # portable body keeps one step per iteration (what CUDA runs).
-    runs = after_step is None and body.name == CPU.name
+    # Without per-step work, or with the variant's own steps, the CPU body runs the steps between
+    # two checks in one call; the portable body keeps one step per iteration (what CUDA runs).
+    runs = (after_step is None or variant_steps is not None) and body.name == CPU.name
+    own_steps = variant_steps is not None
+    variant_steps = variant_steps or _no_steps
     after_step = after_step or _no_step_work
 
     def advance(state: State, extra: variant.arrays, step0: wp.int64, steps: int, p: Coefficients):
@@ -122,7 +137,10 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
                 run = wp.min(
                     wp.static(RENORM_CHECK_EVERY) - int(global_step & wp.static(check_mask)), remaining
                 )
-                wp.static(body.steps)(s, p, wp.int32(run))
+                if wp.static(own_steps):
+                    wp.static(variant_steps)(acc, s, p, wp.int32(run), global_step)
+                else:
+                    wp.static(body.steps)(s, p, wp.int32(run))
                 global_step = global_step + wp.int64(run)
                 remaining = remaining - run
                 if (global_step & wp.static(check_mask)) == wp.int64(0):

@@ -72,6 +72,8 @@ _SMALLEST_NORMAL = 2.0**-1022
 _SUBNORMAL_SCALE = 2.0**SUBNORMAL_SCALE_EXPONENT
 _SUBNORMAL_K = -float(SUBNORMAL_SCALE_EXPONENT)
 _REDUCE_BELOW = REDUCE_ABOVE / 2.0
+# 2^52 + 1023: the double whose low mantissa bits are a biased exponent field, less the bias.
+_EXPONENT_BIAS = 2.0**52 + 1023.0
 
 # Powers of two for the reduction in Warp: after the round with exponent e, x lies in [2^-e, 2^e).
 _HALVINGS = (512, 256, 128, 64, 32, 16, 8, 4, 2, 1)
@@ -136,10 +138,12 @@ _JOIN = ", ".join(str(i) for i in range(16))
 #: are computed at once. With AVX-512, when every lane is positive and finite (in the kernels
 #: ``dx^2 + dp^2`` of a tangent: in practice always), ``fast`` finds ``k`` and ``m`` with
 #: ``vgetexppd`` and ``vgetmantpd`` (exact, subnormals included) and skips the special values'
-#: selects: ~34 vector operations per 8 lanes instead of ~50. ``chunk`` is the general form (bit
-#: fields, every special value), used for every chunk of a call with a zero, infinite, negative or
-#: NaN lane, and on CPUs without AVX-512; both give the same bits (``tests/kernels/test_logarithm.py``
-#: checks each path). The measurements are in ``benchmarks/README.md``.
+#: selects: ~34 vector operations per 8 lanes instead of ~50. Without AVX-512, ``fast`` takes
+#: lanes that are all normal, positive and finite: the bit fields without the subnormal scaling
+#: and the special values, ``k`` as a double from the exponent field. ``chunk`` is the general
+#: form (bit fields, every special value), used for every chunk of a call with another lane; the
+#: paths give the same bits (``tests/kernels/test_logarithm.py`` checks each). The measurements
+#: are in ``benchmarks/README.md``.
 FDLOG_VECTOR = f"""
 struct fdlog {{
 #ifdef __AVX512F__
@@ -157,7 +161,8 @@ struct fdlog {{
         const v_t zero = 0.0, inf = __builtin_inf();
         const bool regular = __builtin_reduce_and((x > zero) & (x < inf)) != 0;
 #else
-        const bool regular = false;
+        const v_t smallest = {_SMALLEST_NORMAL.hex()}, inf = __builtin_inf();
+        const bool regular = __builtin_reduce_and((x >= smallest) & (x < inf)) != 0;
 #endif
         #pragma clang loop unroll(disable)
         for (unsigned c = 0; c < sizeof(v_t) / sizeof(c_t); c++) {{
@@ -182,11 +187,28 @@ struct fdlog {{
     }}
     /* fdlog of positive finite lanes: chunk() without the bit fields and special values */
     static inline c_t fast(const c_t x) {{
-        const c_t one = 1.0, half = 0.5;
         const h_t x_lo = __builtin_shufflevector(x, x, {_HALF});
         const h_t x_hi = __builtin_shufflevector(x, x, {_UPPER});
         const c_t exponent = __builtin_shufflevector(exponent8(x_lo), exponent8(x_hi), {_JOIN});
         const c_t mantissa = __builtin_shufflevector(mantissa8(x_lo), mantissa8(x_hi), {_JOIN});
+        return halved(mantissa, exponent);
+    }}
+#else
+    typedef unsigned long long cu_t __attribute__((ext_vector_type(width)));
+    /* fdlog of normal positive finite lanes: chunk() without the subnormal scaling and the special
+       values, k from the exponent field as the double 2^52 + e (exact; AVX2 converts no int64) */
+    static inline c_t fast(const c_t x) {{
+        const cu_t bits = __builtin_bit_cast(cu_t, x);
+        const cu_t biased = (bits >> 52) | 0x4330000000000000ULL;
+        const c_t exponent = __builtin_bit_cast(c_t, biased) - {_EXPONENT_BIAS.hex()};
+        const cu_t mantissa_bits = (bits & 0x000fffffffffffffULL) | 0x3ff0000000000000ULL;
+        const c_t mantissa = __builtin_bit_cast(c_t, mantissa_bits);   /* in [1, 2) */
+        return halved(mantissa, exponent);
+    }}
+#endif
+    /* fdlog of 2^exponent mantissa, mantissa in [1, 2): into [T/2, T), then steps 2 and 3 */
+    static inline c_t halved(const c_t mantissa, const c_t exponent) {{
+        const c_t one = 1.0, half = 0.5;
         const auto high = mantissa >= {REDUCE_ABOVE.hex()};
         const c_t half_mantissa = mantissa * half;
         const c_t exponent_up = exponent + one;
@@ -194,9 +216,6 @@ struct fdlog {{
         const c_t k = high ? exponent_up : exponent;
         return tail(m, k);
     }}
-#else
-    static inline c_t fast(const c_t x) {{ return chunk(x); }}
-#endif
     static inline c_t chunk(const c_t x) {{
         const c_t zero = 0.0, half = 0.5;
         const c_t inf = __builtin_inf(), nan = __builtin_nan("");

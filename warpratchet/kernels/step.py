@@ -56,6 +56,7 @@ __all__ = [
     "CPU",
     "PORTABLE",
     "force_bodies",
+    "cpu_steps_source",
     "load_lanes",
     "load_lane_vector",
     "store_lane_vector",
@@ -346,15 +347,27 @@ __builtin_memcpy(&s.in_strip, &in_strip, sizeof(v_t));
 }"""
         + _STORE_STATE_CPU
     )
-    steps = (
+    return step, cpu_steps_source(force)
+
+
+def cpu_steps_source(force: Force, each: str = "", before: str = "", after: str = "") -> str:
+    """C++ of the CPU ``steps`` of ``force`` (``count`` iterations, the lanes in local vectors),
+    with ``each`` after every iteration (it sees the locals of the step, ``gain`` and ``in_strip``
+    among them), ``before`` ahead of the loads and ``after`` behind the stores: a variant's
+    per-step work inside the loop, so that the lanes stay in registers between two checks."""
+    force_code, strip_code = cpp_source(force)
+    arithmetic = _STEP_ARITHMETIC_CPU_TEMPLATE.replace("@FORCE@", force_code).replace("@STRIP@", strip_code)
+    return (
         VECTOR_TYPES
+        + before
         + _LOAD_STATE_CPU
         + "for (int i = 0; i < count; i++) {"
         + arithmetic
+        + each
         + "}"
         + _STORE_STATE_CPU
+        + after
     )
-    return step, steps
 
 
 #: C++ for the CPU snippets: ``log_lanes::run(in, use, out)`` sets ``out[k] = log(in[k])`` for the
@@ -441,6 +454,9 @@ class Body(NamedTuple):
     #: in_strip) and (dx, dp, log_stretch) -> (dx, dp, log_stretch); the portable body only.
     point_step: wp.Function | None = None
     point_renorm: wp.Function | None = None
+    #: The force's piece table (the CPU body: for variants that build steps of their own,
+    #: :func:`cpu_steps_source`).
+    force: Force | None = None
 
 
 def _portable_body(force: Force, tag: str) -> Body:
@@ -450,7 +466,7 @@ def _portable_body(force: Force, tag: str) -> Body:
 
 def _cpu_body(force: Force, tag: str) -> Body:
     step, steps = _cpu_steps(force, tag)
-    return Body("cpu", _blocks, _load, _store, step, _renorm_cpu, steps)
+    return Body("cpu", _blocks, _load, _store, step, _renorm_cpu, steps, force=force)
 
 
 def force_bodies(force: Force) -> tuple[Body, Body]:

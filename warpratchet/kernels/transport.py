@@ -32,13 +32,15 @@ import warp as wp
 
 from ..errors import KernelError
 from .advance import AdvanceKernel, Variant
-from .step import INTERLEAVE, Lanes, load_lanes, store_lane_vector
+from .runtime import CPU_ISA
+from .step import INTERLEAVE, Coefficients, Lanes, cpu_steps_source, load_lanes, store_lane_vector
 from .transport_cpu import (
     BINS,
     CLAIM_CPU,
     CONFLICT_WORD,
     DECODE_CPU,
     FINISH_CPU,
+    RECORD_CPU,
     ROWS,
     SCRATCH_BYTES,
     STEP_CPU,
@@ -143,6 +145,31 @@ def _decode_cpu(acc: wp.ref[_CpuAccumulators]): ...
 def _after_step_cpu(acc: wp.ref[_CpuAccumulators], s: wp.ref[Lanes], global_step: wp.int64): ...
 
 
+_RECORDING_STEPS: dict[str, wp.Function] = {}
+
+
+def _recording_steps(force) -> wp.Function:
+    """The CPU body's steps of ``force`` with :data:`.transport_cpu.RECORD_CPU` inside: each step's
+    row written from the lanes in registers (a thread's lanes and its 8-step runs between checks
+    stay in registers, as in ``advance_map``)."""
+    tag = "paper" if force.family == "paper" else force.key
+    if tag not in _RECORDING_STEPS:
+        before, each, after = RECORD_CPU
+
+        def recording_steps(
+            acc: wp.ref[_CpuAccumulators],
+            s: wp.ref[Lanes],
+            p: Coefficients,
+            count: wp.int32,
+            global_step: wp.int64,
+        ): ...
+
+        recording_steps.__qualname__ = f"_recording_steps_{tag}"
+        source = cpu_steps_source(force, each=each, before=before, after=after)
+        _RECORDING_STEPS[tag] = wp.func_native(source)(recording_steps)
+    return _RECORDING_STEPS[tag]
+
+
 @wp.func
 def _after_check_cpu(acc: wp.ref[_CpuAccumulators], s: wp.ref[Lanes], check: wp.int64):
     if acc.rows > wp.static(ROWS - 8):  # the next 8 steps would not fit
@@ -209,6 +236,9 @@ TRANSPORT = Variant(
     cpu_after_check=_after_check_cpu,
     cpu_store=_store_cpu,
     cpu_load=_load_cpu,
+    # AVX2 (16 registers): one step per call spills the lanes around the hook; the run of steps
+    # between two checks in one call keeps them in registers.
+    cpu_steps=_recording_steps if CPU_ISA == "avx2" else None,
 )
 
 

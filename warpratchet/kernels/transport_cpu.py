@@ -16,6 +16,11 @@ state (the registers spill). So the CPU hooks split the work:
   CPU has AVX-512 and GFNI, each full block of 8 rows is decoded at once instead
   (:mod:`.transport_block`).
 
+On the AVX2 path (16 lanes in 16 registers) a hook after each step spills the lanes around it, so
+there the steps between two checks run in one call with the recording inside the loop
+(:data:`RECORD_CPU`: a row is one byte per lane, ``gain + 8 in_strip``), and the rows are decoded
+with the events as byte masks (``_ROWS_AVX2``); the counts are the same.
+
 Trackers: ``age`` (steps since the last visit to B), ``flen`` (steps of the run in progress) are
 bytes kept at most :data:`CAP` after each block, the excess carried exactly in int64 (``*_extra``);
 ``fcode`` is the gain code of the run in progress. The carry arrays hold absolute global steps;
@@ -41,6 +46,7 @@ __all__ = [
     "CONFLICT_WORD",
     "CLAIM_CPU",
     "STEP_CPU",
+    "RECORD_CPU",
     "DECODE_CPU",
     "FINISH_CPU",
 ]
@@ -126,11 +132,123 @@ __builtin_memcpy(scratch + {_STRIP} + 4 * acc.rows, &mask, 4);
 acc.rows = acc.rows + 1;
 """
 
+#: The AVX2 body's recording (16 lanes): ``before``, ``each`` and ``after`` of the CPU body's loop
+#: of steps (``step.cpu_steps_source``), so that the lanes stay in registers between two checks.
+#: A row is one byte per lane, ``gain + 8 in_strip`` (exact: -2..2 outside B, 6..10 in it), four
+#: conversions and three packs from the step's own locals; ``_ROWS_AVX2`` decodes it.
+#: ``global_step`` is the step before the call's first one.
+RECORD_CPU = (
+    f"""
+typedef signed char s8v __attribute__((ext_vector_type({INTERLEAVE})));
+unsigned char* const scratch = acc.arrays.scratch.data;
+int rows = acc.rows;
+if (rows == 0) acc.base = global_step;
+""",
+    f"""{{
+/* the row's byte per lane: gain + 8 in_strip, exact (-2..2, or 6..10 in B) */
+const v_t strip8 = in_strip * 8.0;
+const v_t coded = gain + strip8;
+const s8v row = __builtin_convertvector(coded, s8v);
+__builtin_memcpy(scratch + rows * {INTERLEAVE}, &row, sizeof(s8v));
+rows = rows + 1;
+}}
+""",
+    "acc.rows = rows;\n",
+)
+
 # _GAIN_CODES: a row's gain code is three bits of the gain's top byte ``t`` (C0, BF, 00, 3F, 40 hex
 # for -2 .. 2): bit 0 of ``t`` (|gain| = 1), bit 6 (|gain| = 2), bit 7 (the sign), so gains 0, 1,
 # 2, -1, -2 have codes 0, 1, 2, 5, 6 (a gain is never -0.0: it is ``floor(t) + lift`` with
 # ``lift`` 1.0 or +0.0). The block decoding takes the three bit planes straight from the top bytes.
 
+
+# The rows one by one (the trackers as byte vectors, the events as bool vectors), after the blocks.
+_ROWS = """
+for (int r = r0; r < rows; r++) {
+    u8v top;
+    __builtin_memcpy(&top, buffer + r * N, N);
+    const bv in_strip = __builtin_bit_cast(bv, (mask_t)strip[r]);
+    const u8v gain = gain_code(top);
+    /* returns: a visit closes the gap of age + 1 steps */
+    age = age + one;
+    const bv r8 = tally_returns(in_strip & visited, age);
+    rare_returns(__builtin_bit_cast(mask_t, in_strip & valid & ~r8), age);
+    /* flights: a step with another gain ends the run in progress (if it gained) */
+    const bv same = __builtin_convertvector(gain == fcode, bv);
+    const bv ends = ~same & __builtin_convertvector(fcode != 0, bv) & valid;
+    const bv up = ends & __builtin_convertvector(fcode < four, bv);
+    const bv f8 = tally_flights(ends, up, flen);
+    rare_flights(__builtin_bit_cast(mask_t, ~same & valid & ~f8), flen, fcode);
+    age = in_strip ? (u8v)0 : age;
+    visited = visited | (in_strip & valid);
+    flen = same ? flen + one : one;
+    fcode = gain;
+}
+"""
+
+# The rows one by one from RECORD_CPU's coded bytes (the AVX2 path, 16 lanes): ``b = gain + 8 in_strip``
+# (-2..2 outside B, 6..10 in it), the events as byte masks (0 or FF), so that no lane mask goes
+# through a general-purpose register but the two that find the rare events. The same counts as
+# _ROWS, operation for operation.
+_ROWS_AVX2 = f"""
+{{
+typedef signed char s8v __attribute__((ext_vector_type({INTERLEAVE})));
+typedef char c16 __attribute__((vector_size({INTERLEAVE})));
+const u8v zero8 = 0, four_m = 4;
+const u8v valid_m = zero8 - valid_bytes;
+u8v seen_m = zero8 - __builtin_convertvector(__builtin_convertvector(visited, u8v) & one, u8v);
+auto lanes_of = [](u8v m) {{ return (mask_t)__builtin_ia32_pmovmskb128((c16)m); }};
+for (int r = r0; r < rows; r++) {{
+    s8v b;
+    __builtin_memcpy(&b, buffer + r * N, N);
+    const u8v in_b = (u8v)(b > (s8v)5);
+    const s8v g = b - (s8v)(in_b & eight);
+    const u8v negative = (u8v)(g < (s8v)0);
+    const u8v gain = negative ? (u8v)((s8v)4 - g) : (u8v)g; /* the code of _GAIN_CODES */
+    /* returns: a visit closes the gap of age + 1 steps */
+    age = age + one;
+    const u8v returns = in_b & seen_m;
+    const u8v a8 = (u8v)(age < eight);
+    t[0] -= returns & (u8v)(age < two);
+    t[1] -= returns & (u8v)(age < four);
+    t[2] -= returns & a8;
+    const u8v arrivals = in_b & valid_m;
+    const mask_t rare_r = lanes_of(arrivals & ~a8);
+    if (rare_r) {{
+        unsigned char l[N], seen[N];
+        __builtin_memcpy(l, &age, N);
+        __builtin_memcpy(seen, &seen_m, N);
+        for (mask_t bits = rare_r; bits; bits &= bits - 1) {{
+            const int k = __builtin_ctz(bits);
+            const int bin = {BINS - 1} - __builtin_clzll(age_extra[k] + l[k]);
+            if (seen[k]) *wp::address(acc.arrays.counts, bin) += 1;
+            age_extra[k] = 0;
+        }}
+    }}
+    /* flights: a step with another gain ends the run in progress (if it gained) */
+    const u8v same = (u8v)(gain == fcode);
+    const u8v changed = ~same & valid_m;
+    const u8v ends = changed & ~(u8v)(fcode == zero8);
+    const u8v up = ends & (u8v)(fcode < four_m);
+    const u8v f2 = (u8v)(flen < two), f4 = (u8v)(flen < four), f8 = (u8v)(flen < eight);
+    t[3] -= ends & f2;
+    t[4] -= ends & f4;
+    t[5] -= ends & f8;
+    t[6] -= up & f2;
+    t[7] -= up & f4;
+    t[8] -= up & f8;
+    const mask_t rare_f = lanes_of(changed & ~f8);
+    if (rare_f) rare_flights(rare_f, flen, fcode);
+    age = age & ~in_b;
+    seen_m = seen_m | arrivals;
+    flen = same ? flen + one : one;
+    fcode = gain;
+}}
+visited = __builtin_convertvector(seen_m & one, bv);
+}}
+"""
+
+_CODED_ROWS = INTERLEAVE == 16
 
 #: Decode the buffered rows (``after_check`` and ``store``); see the module docstring.
 DECODE_CPU = (
@@ -246,28 +364,8 @@ auto gain_code = [](u8v top) {{ return (top & (u8v)1) | ((top >> 5) & (u8v)6); }
 """
     + f"int r0 = 0;\nconst int block_rows = acc.arrays.scratch.shape[0] == {SCRATCH_BYTES} ? 8 : 1;\n"
     + BLOCK_CPU
-    + f"""
-for (int r = r0; r < rows; r++) {{
-    u8v top;
-    __builtin_memcpy(&top, buffer + r * N, N);
-    const bv in_strip = __builtin_bit_cast(bv, (mask_t)strip[r]);
-    const u8v gain = gain_code(top);
-    /* returns: a visit closes the gap of age + 1 steps */
-    age = age + one;
-    const bv r8 = tally_returns(in_strip & visited, age);
-    rare_returns(__builtin_bit_cast(mask_t, in_strip & valid & ~r8), age);
-    /* flights: a step with another gain ends the run in progress (if it gained) */
-    const bv same = __builtin_convertvector(gain == fcode, bv);
-    const bv ends = ~same & __builtin_convertvector(fcode != 0, bv) & valid;
-    const bv up = ends & __builtin_convertvector(fcode < four, bv);
-    const bv f8 = tally_flights(ends, up, flen);
-    rare_flights(__builtin_bit_cast(mask_t, ~same & valid & ~f8), flen, fcode);
-    age = in_strip ? (u8v)0 : age;
-    visited = visited | (in_strip & valid);
-    flen = same ? flen + one : one;
-    fcode = gain;
-}}
-/* bytes stay at most CAP: the excess moves to the int64 parts (exact) */
+    + (_ROWS_AVX2 if _CODED_ROWS else _ROWS)
+    + f"""/* bytes stay at most CAP: the excess moves to the int64 parts (exact) */
 const u8v cap = {CAP};
 const mask_t long_age = __builtin_bit_cast(mask_t, __builtin_convertvector(age > cap, bv));
 const mask_t long_flen = __builtin_bit_cast(mask_t, __builtin_convertvector(flen > cap, bv));
