@@ -39,6 +39,7 @@ __all__ = [
     "check_real",
     "check_choice",
     "check_optional",
+    "renamed_attribute",
     "renamed_keyword",
 ]
 
@@ -172,14 +173,26 @@ def renamed_keyword(old: str, new: str) -> Callable[[Callable[..., Any]], Callab
         @functools.wraps(func)
         def wrapper(*args: Any, **kwargs: Any) -> Any:
             if old in kwargs:
+                name = func.__qualname__.removesuffix(".__init__")  # a class is called by its name
                 if new in kwargs:
-                    raise TypeError(f"{func.__qualname__}() got both {old}= and {new}=; give {new}= only")
-                warnings.warn(
-                    f"{func.__qualname__}({old}=...) is spelled {new}=...", DeprecationWarning, stacklevel=2
-                )
+                    raise TypeError(f"{name}() got both {old}= and {new}=; give {new}= only")
+                warnings.warn(f"{name}({old}=...) is spelled {new}=...", DeprecationWarning, stacklevel=2)
                 kwargs[new] = kwargs.pop(old)
             return func(*args, **kwargs)
 
         return wrapper
 
     return decorate
+
+
+def renamed_attribute(owner: str, old: str, new: str) -> property:
+    """A read-only property ``old`` that returns attribute ``new``, with a :class:`DeprecationWarning`.
+
+    The attribute's counterpart of :func:`renamed_keyword` (``owner`` names the class in the warning).
+    """
+
+    def get(self: Any) -> Any:
+        warnings.warn(f"{owner}.{old} is spelled {owner}.{new}", DeprecationWarning, stacklevel=2)
+        return getattr(self, new)
+
+    return property(get, doc=f"Former spelling of :attr:`{new}`, with a :class:`DeprecationWarning`.")

@@ -133,7 +133,7 @@ def run_settings(
     """The settings of a new archive of ``ensemble`` under RunSpec's names (:func:`read_settings`' form)."""
     return {
         **ensemble.params.as_dict(derived=False),
-        "init": ensemble.sampler,
+        "init": ensemble.init,
         "points": ensemble.points,
         "seed": ensemble.seed,
         "classifier": "ftle",

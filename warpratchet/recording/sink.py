@@ -154,7 +154,7 @@ class RecordingSink(Observer):
             self.indices = np.sort(rng.choice(n, size=m, replace=False))
         rule = rule_formula(self.threshold_rule)
         info = {
-            "points": f"{n} ({ensemble.sampler}, seed {ensemble.seed})",
+            "points": f"{n} ({ensemble.init}, seed {ensemble.seed})",
             "recorded points": f"{len(self.indices)} (fixed subsample, seed {self.seed})",
             "chaos threshold": rule if self.threshold is None else self.threshold,
         }
