@@ -40,6 +40,7 @@ __all__ = [
     "check_choice",
     "check_optional",
     "renamed_attribute",
+    "renamed_globals",
     "renamed_keyword",
 ]
 
@@ -196,3 +197,17 @@ def renamed_attribute(owner: str, old: str, new: str) -> property:
         return getattr(self, new)
 
     return property(get, doc=f"Former spelling of :attr:`{new}`, with a :class:`DeprecationWarning`.")
+
+
+def renamed_globals(module: str, renamed: dict[str, str], namespace: dict[str, Any]) -> Callable[[str], Any]:
+    """A module's ``__getattr__``: each former name in ``renamed`` gives the value of its new
+    name in ``namespace`` (the module's globals), with a :class:`DeprecationWarning`."""
+
+    def __getattr__(name: str) -> Any:
+        if name not in renamed:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        new = renamed[name]
+        warnings.warn(f"{module}.{name} is spelled {module}.{new}", DeprecationWarning, stacklevel=2)
+        return namespace[new]
+
+    return __getattr__

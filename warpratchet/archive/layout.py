@@ -71,7 +71,7 @@ RUN_SETTINGS = (
     "init",
     "points",
     "seed",
-    "classifier",
+    "indicator",
     "threshold",
     "threshold_rule",
     "threads",
@@ -136,7 +136,7 @@ def run_settings(
         "init": ensemble.init,
         "points": ensemble.points,
         "seed": ensemble.seed,
-        "classifier": "ftle",
+        "indicator": "ftle",
         "threshold": threshold,
         "threshold_rule": threshold_rule,
         "threads": ensemble.threads,
@@ -161,7 +161,7 @@ def read_settings(attrs: h5py.AttributeManager, version: int) -> dict[str, Any]:
             settings["seed"] = None
         if isinstance(settings.get("threshold"), float) and math.isnan(settings["threshold"]):
             settings["threshold"] = None
-        settings.setdefault("classifier", "ftle")
+        settings.setdefault("indicator", "ftle")
     settings.setdefault("threshold_rule", "strict")  # archives written before the rule existed
     for name in RUN_SETTINGS + ARCHIVE_SETTINGS:
         settings.setdefault(name, None)
