@@ -25,7 +25,7 @@ machine, for any number of shards:
   :func:`~warpratchet.observables.summarize` does, sends the means back, and the second round
   sums the deviations (:func:`~warpratchet.observables.chunk_squares`). The FTLE is
   ``stretch / n`` and ``A_n`` is ``gain / n``, the very operations of
-  :func:`~warpratchet.observables.lyapunov` and :func:`~warpratchet.observables.acceleration`.
+  :func:`~warpratchet.observables.lyapunov` and :func:`~warpratchet.observables.finite_time_acceleration`.
   The spread of the momentum (:func:`~warpratchet.transport.diffusion.spread_moments`) sums
   each group's column row after row: a chain of tasks, shard after shard, carries the column
   sums on (:func:`_fold`), once for the means and once for the squared deviations.

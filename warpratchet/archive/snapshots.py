@@ -15,7 +15,7 @@ import h5py
 import numpy as np
 
 from ..ensemble import STATE_FIELDS
-from ..observables import acceleration, lyapunov
+from ..observables import finite_time_acceleration, lyapunov
 from ..sampling import salted_subsample
 from .checks import check_extent, reading, valid_rows
 from .checks import refresh as _refresh
@@ -69,7 +69,7 @@ def snapshot_row(live: dict[str, np.ndarray], indices: np.ndarray, step: int) ->
         "x": sub["x"],
         "p": sub["q"],  # p mod 1 is exactly q
         "ftle": lyapunov(sub, step),
-        "A": acceleration(sub, step),
+        "A": finite_time_acceleration(sub, step),
     }
 
 

@@ -27,7 +27,7 @@ from .. import errors
 from ..ensemble import Observer
 from ..errors import NonFiniteStateError, check_choice, check_count, check_optional, check_real
 from ..limits import MAX_POINTS, check_memory
-from ..observables import acceleration, lyapunov
+from ..observables import finite_time_acceleration, lyapunov
 from ..params import MapParams
 from .indicators import INDICATORS, IndicatorEnsemble, chaotic_by, default_threshold
 
@@ -224,7 +224,7 @@ def classify(
     rise = np.empty((times.size, ens.points))
     for i, k in enumerate(times):
         ens.run(int(k) - ens.step, observers)
-        rise[i] = acceleration(ens.state(), ens.step) * ens.step
+        rise[i] = finite_time_acceleration(ens.state(), ens.step) * ens.step
     state = ens.state()
     ind = ens.indicators()
     _check_finite(state, ind, steps)
