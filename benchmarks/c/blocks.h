@@ -12,8 +12,9 @@
  *   MASK_SUB(m, a, b)  a - b in the lanes in m, a elsewhere;
  *   ABS(v)             |v|;   LANES_GT(a, b): the bits (lane k -> bit k) of the lanes with a > b.
  *
- * Each primitive is the intrinsic the twin used when it was written out by hand, so both twins do
- * the same operations, in the same order and with the same roundings, as warpratchet.kernels.step.
+ * Each primitive is one or two intrinsics of its instruction set and rounds nothing beyond the
+ * operation it names, so both twins do the same operations, in the same order and with the same
+ * roundings, as warpratchet.kernels.step.
  */
 #ifndef RATCHET_BLOCKS_H
 #define RATCHET_BLOCKS_H
