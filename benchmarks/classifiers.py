@@ -38,7 +38,7 @@ import numpy as np
 
 from warpratchet import Ensemble, MapParams
 from warpratchet.observables import default_lyapunov_threshold, lyapunov
-from warpratchet.sumrule import CLASSIFIERS, IndicatorEnsemble, chaotic_by
+from warpratchet.sumrule import INDICATORS, IndicatorEnsemble, chaotic_by
 
 #: (K, b1, b2): two K at b1 = 0.1, b2 = 0.01, and one more point each
 #: (Fig. 12's domain-R point at K = 3, Fig. 9's path at K = 2.99).
@@ -71,7 +71,7 @@ def run_case(K: float, b1: float, b2: float, points: int, reference: int) -> dic
     for n in _checkpoints(reference):
         ens.run(n - ens.step)
         state, ind = ens.state(), ens.indicators()
-        records[n] = {name: chaotic_by(name, state, ind, n) for name in CLASSIFIERS}
+        records[n] = {name: chaotic_by(name, state, ind, n) for name in INDICATORS}
     indicator_seconds = time.perf_counter() - start
     ref_ftle = lyapunov(ens.state(), reference)
     reference_mask = records[reference]["ftle"]
@@ -86,12 +86,12 @@ def run_case(K: float, b1: float, b2: float, points: int, reference: int) -> dic
     plain_seconds = time.perf_counter() - start
     out = {"K": K, "b1": b1, "b2": b2, "points": points, "reference_steps": reference,
            "chaotic_fraction": float(reference_mask.mean()), "ambiguous_reference": ambiguous,
-           "indicator_over_plain_time": indicator_seconds / plain_seconds, "classifiers": {}}  # fmt: skip
-    for name in CLASSIFIERS:
+           "indicator_over_plain_time": indicator_seconds / plain_seconds, "indicators": {}}  # fmt: skip
+    for name in INDICATORS:
         curve = [(n, float(np.mean(masks[name] == reference_mask))) for n, masks in records.items()]
         # The FTLE at the reference length is the reference itself: leave that point out.
         scored = curve[:-1] if name == "ftle" else curve
-        out["classifiers"][name] = {"steps_to_999": _steps_to_target(scored), "agreement": curve}
+        out["indicators"][name] = {"steps_to_999": _steps_to_target(scored), "agreement": curve}
     return out
 
 
@@ -112,21 +112,21 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps({"target": TARGET, "cases": results}))
         return 0
     print(f"steps until >= {TARGET:.1%} agreement with the FTLE classification at the reference length")
-    header = " ".join(f"{c:>8}" for c in CLASSIFIERS)
+    header = " ".join(f"{c:>8}" for c in INDICATORS)
     print(f"{'K':>5} {'b1':>5} {'b2':>5} {'chaotic':>8} {'ambig.':>7} {header}  indicator/plain time")
     for r in results:
         cells = []
-        for c in CLASSIFIERS:
-            steps = r["classifiers"][c]["steps_to_999"]
+        for c in INDICATORS:
+            steps = r["indicators"][c]["steps_to_999"]
             cells.append(f"{'never' if steps is None else steps:>8}")
         where = f"{r['K']:>5} {r['b1']:>5} {r['b2']:>5}"
         shares = f"{r['chaotic_fraction']:8.4f} {r['ambiguous_reference']:7.4f}"
         print(f"{where} {shares} {' '.join(cells)}  {r['indicator_over_plain_time']:.2f}")
     print("agreement at selected n (ftle / megno / fli):")
     for r in results:
-        curves = {c: dict(r["classifiers"][c]["agreement"]) for c in CLASSIFIERS}
+        curves = {c: dict(r["indicators"][c]["agreement"]) for c in INDICATORS}
         picks = [n for n in curves["ftle"] if math.log2(n).is_integer() and n >= 64] + [r["reference_steps"]]
-        row = "  ".join(f"{n}: " + "/".join(f"{curves[c][n]:.4f}" for c in CLASSIFIERS) for n in picks)
+        row = "  ".join(f"{n}: " + "/".join(f"{curves[c][n]:.4f}" for c in INDICATORS) for n in picks)
         print(f"  K = {r['K']}, b1 = {r['b1']}, b2 = {r['b2']}: {row}")
     return 0
 

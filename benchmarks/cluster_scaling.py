@@ -43,7 +43,7 @@ import time
 from typing import Any
 
 import numpy as np
-from sweep_scaling import _log, _Parser  # the sibling benchmark's one-line errors and progress lines
+from sweep_scaling import _log, _parser  # the sibling benchmark's one-line errors and progress lines
 
 from warpratchet.cli import positive_int
 from warpratchet.cluster import ShardedRun, ShardRecord, run_shard, run_sharded, shard_bounds
@@ -69,9 +69,7 @@ def _slice(record: ShardRecord, lo: int, hi: int) -> ShardRecord:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = _Parser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="small run (smoke test)")
-    parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    parser = _parser(__doc__, "small run (smoke test)")
     parser.add_argument("--points", type=positive_int, default=None, help="ensemble size (10^5)")
     parser.add_argument("--steps", type=positive_int, default=None, help="iterations (2x10^4)")
     args = parser.parse_args(argv)

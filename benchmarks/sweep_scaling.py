@@ -61,6 +61,14 @@ class _Parser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+def _parser(doc: str, quick: str) -> _Parser:
+    """A scaling benchmark's parser: ``--quick`` (help ``quick``) and ``--json``; sizes come after."""
+    parser = _Parser(description=doc.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help=quick)
+    parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    return parser
+
+
 def _log(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
@@ -99,9 +107,7 @@ def _measure(
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = _Parser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="small sweep (smoke test)")
-    parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    parser = _parser(__doc__, "small sweep (smoke test)")
     parser.add_argument("--sweep-points", type=positive_int, default=None, help="points on the path (24)")
     parser.add_argument("--points", type=positive_int, default=None, help="ensemble size per point (10^4)")
     parser.add_argument("--steps", type=positive_int, default=None, help="iterations per point (2x10^4)")

@@ -49,7 +49,7 @@ from _options import options
 
 from warpratchet import MapParams, theory
 from warpratchet.ensemble import sample_strip, sample_torus
-from warpratchet.observables import acceleration, default_lyapunov_threshold, lyapunov
+from warpratchet.observables import default_lyapunov_threshold, finite_time_acceleration, lyapunov
 from warpratchet.sumrule import MEGNO_THRESHOLD, IndicatorEnsemble, chaotic_by, classify, fli_threshold
 
 K, B1 = 2.99, 0.25
@@ -183,7 +183,7 @@ def n_dependence(
         state = ens.state()
         mask = chaotic_by("megno", state, ens.indicators(), n)
         sigma, sigma_se = mean_se(lyapunov(state, n)[mask])
-        a, a_se = mean_se(acceleration(state, n)[mask])
+        a, a_se = mean_se(finite_time_acceleration(state, n)[mask])
         rows.append(
             {
                 "n": n,

@@ -33,17 +33,20 @@ from warpratchet.sweep.run import point_seed
 RULES = ("positive", "strict")
 
 
+SIZES = {
+    "--points": ("initial conditions per point", 10_000, 2_000),
+    "--steps": ("iterations n", 120_000, 30_000),
+    "--count": ("points of the path", 28, 4),
+}
+
+
 def main(argv: list[str] | None = None) -> int:
     _, args = options(
         __doc__,
         argv,
         quick="4 points of the path, 2000 initial conditions x 30000 steps",
         seed=0,
-        sizes={
-            "--points": ("initial conditions per point", 10_000, 2_000),
-            "--steps": ("iterations n", 120_000, 30_000),
-            "--count": ("points of the path", 28, 4),
-        },
+        sizes=SIZES,
     )
     path = paper.FIG9
     params = fixed_b1_path(path.b1, path.b2_values(args.count), K=path.K)

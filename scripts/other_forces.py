@@ -106,18 +106,15 @@ def _figure(params: MapParams, side: int, steps: int, orbits: list[dict]) -> Non
     plt.close(fig)
 
 
+SIZES = {
+    "--points": ("census points", 200_000, 20_000),
+    "--steps": ("iterations per point", 13_824, 13_824),
+    "--side": ("lattice side of the figure", 240, 100),
+}
+
+
 def main(argv: list[str] | None = None) -> int:
-    _, args = options(
-        __doc__,
-        argv,
-        quick="2e4 points and a 100^2 lattice",
-        seed=0,
-        sizes={
-            "--points": ("census points", 200_000, 20_000),
-            "--steps": ("iterations per point", 13_824, 13_824),
-            "--side": ("lattice side of the figure", 240, 100),
-        },
-    )
+    _, args = options(__doc__, argv, quick="2e4 points and a 100^2 lattice", seed=0, sizes=SIZES)
     params = MapParams(K, table=Force.from_knots(KNOTS, VALUES))
     orbits = _orbits(params)
     result = census(params, args.steps, points=args.points, seed=args.seed)

@@ -24,7 +24,7 @@ from typing import Any
 
 from warpratchet import paper, theory
 from warpratchet.ensemble import Ensemble
-from warpratchet.observables import acceleration
+from warpratchet.observables import finite_time_acceleration
 from warpratchet.params import MapParams
 from warpratchet.sweep import read_sweep
 
@@ -90,7 +90,7 @@ def bias_bound(row: dict[str, Any], threads: int | None = None) -> BiasBound:
     ensemble = Ensemble.sample(params, int(row["points"]), row["init"], int(row["seed"]), threads=threads)
     ensemble.run(window)
     # Per-point displacement minus window * A_n: its mean is B(T0).
-    shifted = window * (acceleration(ensemble.state(), window) - row["A"])
+    shifted = window * (finite_time_acceleration(ensemble.state(), window) - row["A"])
     offset = float(shifted.mean())
     offset_se = math.hypot(float(shifted.std(ddof=1)) / math.sqrt(shifted.size), window * row["A_stderr"])
     left_out = (1.0 - row["chaotic_fraction"]) * window * params.K

@@ -52,7 +52,7 @@ def replay(
     rule = settings.get("threshold_rule", "strict")  # the run's rule, when it gave no threshold
     info = {
         "archive": str(getattr(archive, "path", "")),
-        "points": f"{settings.get('points')} ({settings.get('sampler')}, seed {settings.get('seed')})",
+        "points": f"{settings.get('points')} ({settings.get('init')}, seed {settings.get('seed')})",
         "recorded points": f"{snaps.x.shape[1] if len(snaps) else 0} (the archive's snapshot subsample)",
         "chaos threshold": rule_formula(rule) if threshold is None else threshold,
     }

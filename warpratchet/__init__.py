@@ -15,7 +15,15 @@ from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
 from . import theory
-from .observables import Summary, UnreliableWarning, acceleration, chaotic_mask, lyapunov, summarize
+from .errors import renamed_globals
+from .observables import (
+    Summary,
+    UnreliableWarning,
+    chaotic_mask,
+    finite_time_acceleration,
+    lyapunov,
+    summarize,
+)
 from .params import MapParams
 from .runloop import register_sink
 from .spec import RunSpec
@@ -34,6 +42,9 @@ _LAZY = {
     "StorageError": "._storage",
 }
 
+#: Former public names, still answered with a DeprecationWarning: name -> its name now.
+_renamed = renamed_globals(__name__, {"acceleration": "finite_time_acceleration"}, globals())
+
 __all__ = [
     "MapParams",
     "RunSpec",
@@ -43,7 +54,7 @@ __all__ = [
     "Summary",
     "UnreliableWarning",
     "theory",
-    "acceleration",
+    "finite_time_acceleration",
     "lyapunov",
     "chaotic_mask",
     "summarize",
@@ -69,7 +80,7 @@ def __getattr__(name: str) -> Any:
         value = getattr(import_module(_LAZY[name], __name__), name)
         globals()[name] = value
         return value
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return _renamed(name)  # a former name (with a DeprecationWarning), or AttributeError
 
 
 def __dir__() -> list[str]:

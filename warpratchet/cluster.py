@@ -25,7 +25,7 @@ machine, for any number of shards:
   :func:`~warpratchet.observables.summarize` does, sends the means back, and the second round
   sums the deviations (:func:`~warpratchet.observables.chunk_squares`). The FTLE is
   ``stretch / n`` and ``A_n`` is ``gain / n``, the very operations of
-  :func:`~warpratchet.observables.lyapunov` and :func:`~warpratchet.observables.acceleration`.
+  :func:`~warpratchet.observables.lyapunov` and :func:`~warpratchet.observables.finite_time_acceleration`.
   The spread of the momentum (:func:`~warpratchet.transport.diffusion.spread_moments`) sums
   each group's column row after row: a chain of tasks, shard after shard, carries the column
   sums on (:func:`_fold`), once for the means and once for the squared deviations.
@@ -54,7 +54,7 @@ import numpy as np
 
 from . import observables as _obs
 from ._cluster_archive import shard_paths
-from .errors import ParameterError, ResourceError, check_count
+from .errors import ParameterError, ResourceError, check_count, renamed_attribute
 from .history import BLOCKS, History, block_steps, block_subsample, history_row, history_steps
 from .limits import format_bytes
 from .observables import SUMMARY_BYTES_PER_POINT, Summary, lyapunov, momentum_gain
@@ -222,7 +222,7 @@ def _sample_shard(spec: RunSpec, lo: int, hi: int, transport: bool):
 
     _, chunks = sampled_chunks(spec.params, spec.init, spec.points, spec.seed, lo, hi)
     return _kind(transport)(
-        spec.params, None, None, device=spec.device, threads=spec.threads, sampler=spec.init,
+        spec.params, None, None, device=spec.device, threads=spec.threads, init=spec.init,
         seed=spec.seed, _chunks=(hi - lo, chunks),
     )  # fmt: skip
 
@@ -466,7 +466,7 @@ class ShardedRun:
 
     Attributes
     ----------
-    params, points, step, seed, sampler, threads
+    params, points, step, seed, init, threads
         As an :class:`~warpratchet.ensemble.Ensemble` of the run has them (``threads``: each
         shard's, as given in the spec).
     shards : int
@@ -483,6 +483,8 @@ class ShardedRun:
         What the merge's tasks handed to this process (pickled).
     """
 
+    sampler = renamed_attribute("ShardedRun", "sampler", "init")
+
     def __init__(
         self, spec: RunSpec, records: list[ShardRecord], transport: bool, sources: list | None = None,
         client: Any = None,
@@ -493,7 +495,7 @@ class ShardedRun:
         self.points = records[-1].hi
         self.step = spec.steps
         self.seed = spec.seed
-        self.sampler = spec.init
+        self.init = spec.init
         self.threads = spec.threads
         self.device = spec.device
         self.shards = len(records)

@@ -26,7 +26,15 @@ import numpy as np
 import warp as wp
 
 from . import kernels
-from .errors import ParameterError, check_choice, check_count, check_optional, check_real, renamed_keyword
+from .errors import (
+    ParameterError,
+    check_choice,
+    check_count,
+    check_optional,
+    check_real,
+    renamed_attribute,
+    renamed_keyword,
+)
 from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from .limits import MAX_POINTS, MAX_STEP, check_kernel_range, check_memory, format_bytes
 from .observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, Summary, lyapunov, momentum_gain, summarize
@@ -79,10 +87,15 @@ class Ensemble:
         Warp device, e.g. ``"cpu"`` or ``"cuda:0"``; default ``"cpu"``.
     threads : int, optional
         CPU threads to shard over (default: one per core). Ignored on a GPU.
-    sampler, seed : str, int, optional
-        Provenance recorded in archives (set by :meth:`sample`).
+    init, seed : str, int, optional
+        Provenance recorded in archives: the initial conditions' name (``"user"`` for arrays; a
+        name of :data:`SAMPLERS` from :meth:`sample`) and their seed. ``sampler=`` is the former
+        spelling of ``init=`` (a :class:`DeprecationWarning`).
     """
 
+    sampler = renamed_attribute("Ensemble", "sampler", "init")
+
+    @renamed_keyword("sampler", "init")
     def __init__(
         self,
         params: MapParams,
@@ -91,7 +104,7 @@ class Ensemble:
         *,
         device: str | None = None,
         threads: int | None = None,
-        sampler: str = "user",
+        init: str = "user",
         seed: int | None = None,
         _chunks=None,
     ) -> None:
@@ -104,7 +117,7 @@ class Ensemble:
                 ((lo, x0[lo : lo + step], p0[lo : lo + step]) for lo in range(0, x0.size, step)),
             )
         points, chunks = _chunks
-        self._setup(params, points, 0, device, threads, sampler, seed)
+        self._setup(params, points, 0, device, threads, init, seed)
         for lo, x, p in chunks:
             self._fill(lo, x, p)
 
@@ -124,7 +137,7 @@ class Ensemble:
         source = wp.array(host, dtype=self._arrays[name].dtype, device="cpu", copy=False)
         wp.copy(self._arrays[name], source, dest_offset=lo, count=count)
 
-    def _setup(self, params, points, step, device, threads, sampler, seed) -> None:
+    def _setup(self, params, points, step, device, threads, init, seed) -> None:
         """Everything but the state, which is allocated here (uninitialised) and filled by the caller.
 
         Every argument is checked before anything is allocated: the map against what the kernels
@@ -143,7 +156,7 @@ class Ensemble:
             available = ", ".join(str(d) for d in wp.get_devices())
             raise ValueError(f"device = {device!r} is not available (Warp sees: {available})") from None
         self.check_fits(points, self.device)
-        self.sampler = sampler
+        self.init = init
         self.seed = seed
         self.step = int(step)
         self._arrays = {
@@ -205,11 +218,10 @@ class Ensemble:
         # Built chunk by chunk into the state (the same points as sample_strip, sample_torus and
         # sample_grid): no full-size temporaries, so 10^8 points need little more than their state.
         chunks = sampled_chunks(params, init, points, seed)
-        return cls(
-            params, None, None, device=device, threads=threads, sampler=init, seed=seed, _chunks=chunks
-        )
+        return cls(params, None, None, device=device, threads=threads, init=init, seed=seed, _chunks=chunks)
 
     @classmethod
+    @renamed_keyword("sampler", "init")
     def from_state(
         cls,
         params: MapParams,
@@ -218,7 +230,7 @@ class Ensemble:
         *,
         device: str | None = None,
         threads: int | None = None,
-        sampler: str = "user",
+        init: str = "user",
         seed: int | None = None,
     ) -> Ensemble:
         """Rebuild an ensemble exactly from :meth:`state` output (checkpoints, exact restart)."""
@@ -233,7 +245,7 @@ class Ensemble:
             raise ValueError(f"state fields must be 1-D arrays of one length; got shapes {sizes}")
         check_state(state)
         obj = cls.__new__(cls)
-        obj._setup(params, len(state["x"]), step, device, threads, sampler, seed)
+        obj._setup(params, len(state["x"]), step, device, threads, init, seed)
         for name in STATE_FIELDS:
             values = np.asarray(state[name])
             for lo in range(0, obj.points, _BUILD_CHUNK):

@@ -39,6 +39,8 @@ __all__ = [
     "check_real",
     "check_choice",
     "check_optional",
+    "renamed_attribute",
+    "renamed_globals",
     "renamed_keyword",
 ]
 
@@ -172,14 +174,40 @@ def renamed_keyword(old: str, new: str) -> Callable[[Callable[..., Any]], Callab
         @functools.wraps(func)
         def wrapper(*args: Any, **kwargs: Any) -> Any:
             if old in kwargs:
+                name = func.__qualname__.removesuffix(".__init__")  # a class is called by its name
                 if new in kwargs:
-                    raise TypeError(f"{func.__qualname__}() got both {old}= and {new}=; give {new}= only")
-                warnings.warn(
-                    f"{func.__qualname__}({old}=...) is spelled {new}=...", DeprecationWarning, stacklevel=2
-                )
+                    raise TypeError(f"{name}() got both {old}= and {new}=; give {new}= only")
+                warnings.warn(f"{name}({old}=...) is spelled {new}=...", DeprecationWarning, stacklevel=2)
                 kwargs[new] = kwargs.pop(old)
             return func(*args, **kwargs)
 
         return wrapper
 
     return decorate
+
+
+def renamed_attribute(owner: str, old: str, new: str) -> property:
+    """A read-only property ``old`` that returns attribute ``new``, with a :class:`DeprecationWarning`.
+
+    The attribute's counterpart of :func:`renamed_keyword` (``owner`` names the class in the warning).
+    """
+
+    def get(self: Any) -> Any:
+        warnings.warn(f"{owner}.{old} is spelled {owner}.{new}", DeprecationWarning, stacklevel=2)
+        return getattr(self, new)
+
+    return property(get, doc=f"Former spelling of :attr:`{new}`, with a :class:`DeprecationWarning`.")
+
+
+def renamed_globals(module: str, renamed: dict[str, str], namespace: dict[str, Any]) -> Callable[[str], Any]:
+    """A module's ``__getattr__``: each former name in ``renamed`` gives the value of its new
+    name in ``namespace`` (the module's globals), with a :class:`DeprecationWarning`."""
+
+    def __getattr__(name: str) -> Any:
+        if name not in renamed:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        new = renamed[name]
+        warnings.warn(f"{module}.{name} is spelled {module}.{new}", DeprecationWarning, stacklevel=2)
+        return namespace[new]
+
+    return __getattr__

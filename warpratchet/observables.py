@@ -14,11 +14,18 @@ from typing import Any
 
 import numpy as np
 
-from .errors import NonFiniteStateError, check_count, check_optional, check_real, renamed_keyword
+from .errors import (
+    NonFiniteStateError,
+    check_count,
+    check_optional,
+    check_real,
+    renamed_globals,
+    renamed_keyword,
+)
 
 __all__ = [
     "momentum_gain",
-    "acceleration",
+    "finite_time_acceleration",
     "lyapunov",
     "THRESHOLD_RULES",
     "lyapunov_threshold",
@@ -65,12 +72,21 @@ def momentum_gain(state: Mapping[str, np.ndarray]) -> np.ndarray:
     return state["winding"] + (state["q"] - (p0 - np.floor(p0)))
 
 
-def acceleration(state: dict[str, np.ndarray], step: int) -> np.ndarray:
-    """Per-point mean acceleration ``A_n = (p_n - p_0)/n`` of Eq. (An), shape ``(points,)``:
-    :func:`momentum_gain` over ``n``."""
+def finite_time_acceleration(state: dict[str, np.ndarray], step: int) -> np.ndarray:
+    """Per-point finite-time acceleration ``A_n = (p_n - p_0)/n`` of Eq. (An), shape ``(points,)``:
+    :func:`momentum_gain` over ``n``.
+
+    Named apart from the ratchet acceleration ``A``: :attr:`Summary.A` is the mean of ``A_n`` over
+    the chaotic points, :func:`warpratchet.theory.acceleration` its closed form (Eqs. Aa, Ab).
+    ``acceleration`` is this function's former name (a :class:`DeprecationWarning`).
+    """
     if step <= 0:
         raise ValueError(f"step = {step!r}: A_n needs at least one iteration")
     return momentum_gain(state) / step
+
+
+#: ``acceleration``, the former name of :func:`finite_time_acceleration`, still works (DeprecationWarning).
+__getattr__ = renamed_globals(__name__, {"acceleration": "finite_time_acceleration"}, globals())
 
 
 def lyapunov(state: dict[str, np.ndarray], step: int) -> np.ndarray:
@@ -256,11 +272,11 @@ def _per_point(
     gain: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """FTLE (``ftle[lo:hi]`` if given) and ``A_n`` (``gain[lo:hi] / step`` if given: the bits of
-    :func:`acceleration`) of points ``lo:hi`` (views of ``state``, no copies)."""
+    :func:`finite_time_acceleration`) of points ``lo:hi`` (views of ``state``, no copies)."""
     part = {name: state[name][lo:hi] for name in ("winding", "q", "p0", "dx", "dp", "log_stretch")}
     with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # non-finite: refused by the caller
         exponents = lyapunov(part, step) if ftle is None else ftle[lo:hi]
-        return exponents, acceleration(part, step) if gain is None else gain[lo:hi] / step
+        return exponents, finite_time_acceleration(part, step) if gain is None else gain[lo:hi] / step
 
 
 @renamed_keyword("rule", "threshold_rule")

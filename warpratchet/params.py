@@ -24,6 +24,18 @@ from .force import Force, paper_coefficients
 __all__ = ["MapParams", "check_real", "map_text"]
 
 
+def _paper_coefficient(index: int, name: str, doc: str) -> property:
+    """The property ``name``: coefficient ``index`` of :func:`warpratchet.force.paper_coefficients`,
+    which only the paper's force has."""
+
+    def coefficient(self: MapParams) -> float:
+        self.require_paper(name)
+        return paper_coefficients(self.b1, self.b2)[index]
+
+    coefficient.__doc__ = doc
+    return property(coefficient)
+
+
 @dataclass(frozen=True)
 class MapParams:
     """The map's parameters: ``K`` and the force, the paper's ``b1, b2`` or a piece table.
@@ -99,23 +111,9 @@ class MapParams:
         self.require_paper("b")
         return self.b1 + self.b2
 
-    @property
-    def l1(self) -> float:
-        """Left slope ``l1`` of Eq. (mmc) (:func:`warpratchet.force.paper_coefficients`)."""
-        self.require_paper("l1")
-        return paper_coefficients(self.b1, self.b2)[0]
-
-    @property
-    def l2(self) -> float:
-        """Right slope ``l2`` of Eq. (mmc)."""
-        self.require_paper("l2")
-        return paper_coefficients(self.b1, self.b2)[1]
-
-    @property
-    def c(self) -> float:
-        """Offset ``c`` of the middle branch, Eq. (mmc)."""
-        self.require_paper("c")
-        return paper_coefficients(self.b1, self.b2)[2]
+    l1 = _paper_coefficient(0, "l1", "Left slope ``l1`` of Eq. (mmc).")
+    l2 = _paper_coefficient(1, "l2", "Right slope ``l2`` of Eq. (mmc).")
+    c = _paper_coefficient(2, "c", "Offset ``c`` of the middle branch, Eq. (mmc).")
 
     @property
     def alpha(self) -> float:

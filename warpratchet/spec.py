@@ -29,20 +29,21 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from .errors import ParameterError, check_choice, check_count, check_real
+from .errors import ParameterError, check_choice, check_count, check_real, renamed_globals, renamed_keyword
 from .force import Force, numbers_text, parse_numbers
 from .limits import MAX_POINTS, MAX_STEP, check_kernel_range
 from .params import MapParams
 
 __all__ = [
     "SAMPLERS",
-    "CLASSIFIERS",
+    "INDICATORS",
     "THRESHOLD_RULES",
     "MAX_THREADS",
     "MAX_CHUNK_STEPS",
     "CHECKPOINT_SECONDS",
     "MAX_CHECKPOINT_SECONDS",
     "LEGACY_NAMES",
+    "RENAMED",
     "Setting",
     "RunSpec",
     "SweepSpec",
@@ -55,7 +56,7 @@ __all__ = [
 #: Initial-condition samplers: the strip B of Eq. (B) (the paper's ensemble), the torus, a grid.
 SAMPLERS = ("strip", "torus", "grid")
 #: Chaos indicators: finite-time Lyapunov exponent, MEGNO, fast Lyapunov indicator (sumrule).
-CLASSIFIERS = ("ftle", "megno", "fli")
+INDICATORS = ("ftle", "megno", "fli")
 #: How the FTLE threshold depends on n when no ``threshold`` is given: ``strict`` = 10 (1 + ln n)/n
 #: (the default), ``positive`` = (1 + ln n)/n (the paper's Fig. 9 ensemble with ``init="torus"``).
 #: The factors are :data:`warpratchet.observables.THRESHOLD_RULES`.
@@ -77,8 +78,14 @@ CHECKPOINT_SECONDS = 60.0
 MAX_CHECKPOINT_SECONDS = 7 * 86400.0
 #: Counts are stored as int64 (HDF5 attributes, sweep columns).
 _INT64_MAX = 2**63 - 1
-#: Old attribute names -> RunSpec names (archive format v1 wrote ``sampler``).
-LEGACY_NAMES = {"sampler": "init"}
+#: Former setting names -> their names now: RunSpec's keyword and the CLI flag still take the
+#: former one, with a DeprecationWarning.
+RENAMED = {"classifier": "indicator"}
+#: Old attribute names -> RunSpec names (archive format v1 wrote ``sampler``; archives written
+#: before the indicator had its one name store ``classifier``).
+LEGACY_NAMES = {"sampler": "init", **RENAMED}
+#: ``spec.CLASSIFIERS``, the former name of :data:`INDICATORS`, still works (DeprecationWarning).
+__getattr__ = renamed_globals(__name__, {"CLASSIFIERS": "INDICATORS"}, globals())
 
 
 def check_checkpoint_seconds(value: object) -> float:
@@ -192,7 +199,7 @@ _SETTINGS: dict[str, tuple[Any, Setting]] = {
     "points": (10_000, Setting("ensemble size", int, _count(1, MAX_POINTS))),
     "seed": (0, Setting("NumPy seed of the sampler", int, _count(0, _INT64_MAX))),
     "steps": (120_000, Setting("iterations n", int, _count(1, MAX_STEP))),
-    "classifier": ("ftle", Setting("chaos indicator", str, choices=CLASSIFIERS)),
+    "indicator": ("ftle", Setting("chaos indicator", str, choices=INDICATORS)),
     "threshold": (
         None,
         Setting(
@@ -363,9 +370,10 @@ class RunSpec(_Spec):
         NumPy seed of the sampler, ``>= 0`` (default 0).
     steps : int
         Iterations ``n`` (the total a run reaches), ``>= 1`` (default 120000, the paper's).
-    classifier : str
-        Chaos indicator, one of :data:`CLASSIFIERS` (default ``"ftle"``; ``megno``/``fli`` are
-        used by the sum-rule census).
+    indicator : str
+        Chaos indicator, one of :data:`INDICATORS` (default ``"ftle"``; ``megno``/``fli`` are
+        used by the sum-rule census). ``classifier=`` is its former spelling (a
+        :class:`DeprecationWarning`).
     threshold : float or None
         Indicator value above which a point counts as chaotic, ``>= 0``; ``None``: the
         indicator's default (for the FTLE, per iteration, the rule ``threshold_rule``).
@@ -399,7 +407,7 @@ class RunSpec(_Spec):
     points: int = _field("points")
     seed: int = _field("seed")
     steps: int = _field("steps")
-    classifier: str = _field("classifier")
+    indicator: str = _field("indicator")
     threshold: float | None = _field("threshold")
     threshold_rule: str = _field("threshold_rule")
     threads: int | None = _field("threads")
@@ -418,6 +426,10 @@ class RunSpec(_Spec):
     def params(self) -> MapParams:
         """The map of this run: the paper's ``b1, b2`` or the force of ``knots, values``."""
         return params_of(self.K, self.b1, self.b2, self.knots, self.values)
+
+
+# RunSpec(classifier=...), the former keyword (spec.RENAMED), still works with a DeprecationWarning.
+RunSpec.__init__ = renamed_keyword("classifier", "indicator")(RunSpec.__init__)
 
 
 def params_of(K, b1=None, b2=None, knots=None, values=None) -> MapParams:

@@ -1,9 +1,20 @@
 /*
- * The part both hand-vectorised twins share: the rare renormalisation (lane by lane), loading and
- * storing a block's lane vectors, a block of points copied into lane arrays (padded with copies
- * of the last point), advanced by the twin's advance_block and copied back, and the OpenMP
- * driver over blocks. The including file first defines WIDTH (doubles per vector), vec_t, its
- * intrinsics SET1, LOADU and STOREU, and NV; it defines advance_block after.
+ * The part both hand-vectorised twins share: the step loop of a block of lane vectors, the rare
+ * renormalisation (lane by lane), loading and storing a block's lane vectors, a block of points
+ * copied into lane arrays (padded with copies of the last point) and back, and the OpenMP driver
+ * over blocks. The including file first defines its instruction set's primitives:
+ *
+ *   WIDTH              doubles per vector;  vec_t, mask_t: a vector and a lane mask;
+ *   PD(op)             the packed-double intrinsic of op (add, sub, mul, set1, loadu, storeu);
+ *   FLOOR(t)           floor(t) lane by lane, in one instruction;
+ *   CMP_GE(a, b)       the mask of the lanes with a >= b;
+ *   CLEAR(m, v)        v with the lanes in m set to 0;   KEEP(m, v): v in the lanes in m, 0 elsewhere;
+ *   MASK_SUB(m, a, b)  a - b in the lanes in m, a elsewhere;
+ *   ABS(v)             |v|;   LANES_GT(a, b): the bits (lane k -> bit k) of the lanes with a > b.
+ *
+ * Each primitive is one or two intrinsics of its instruction set and rounds nothing beyond the
+ * operation it names, so both twins do the same operations, in the same order and with the same
+ * roundings, as warpratchet.kernels.step.
  */
 #ifndef RATCHET_BLOCKS_H
 #define RATCHET_BLOCKS_H
@@ -11,7 +22,17 @@
 #include "force.h"
 #include "renorm.h"
 
+#ifndef NV
+#error "compile with -DNV=<vectors per block>"
+#endif
+
 #define BLOCK (WIDTH * NV)
+#define SET1 PD(set1)
+#define LOADU PD(loadu)
+#define STOREU PD(storeu)
+#define ADD PD(add)
+#define SUB PD(sub)
+#define MUL PD(mul)
 
 /* |dx| > threshold in the lanes set in big: renormalise those (log lane by lane, the C library's). */
 static void renormalise(int big, vec_t *dx, vec_t *dp, vec_t *lsum)
@@ -53,8 +74,41 @@ static void renormalise(int big, vec_t *dx, vec_t *dp, vec_t *lsum)
         STOREU(lsum + WIDTH * v, L[v]);     \
     }
 
+/* Advance the BLOCK points at x..lsum (w: whole units gained, float64) by `steps` iterations. */
 static void advance_block(const force_t *m, int64_t step0, int64_t steps, double *x, double *q, double *w,
-                          double *dx, double *dp, double *lsum);
+                          double *dx, double *dp, double *lsum)
+{
+    const vec_t one = SET1(1.0);
+    const vec_t threshold = SET1(RENORM_THRESHOLD);
+    vec_t X[NV], Q[NV], W[NV], DX[NV], DP[NV], L[NV];
+    LOAD_LANES();
+    for (int64_t s = 0; s < steps; s++) {
+        for (int v = 0; v < NV; v++) {
+            const vec_t xv = X[v];
+            vec_t kick, k_slope; /* K f and K f' (Eq. fx) */
+            force_kick(xv, m, &kick, &k_slope);
+            const vec_t t = ADD(Q[v], kick);
+            const vec_t fl = FLOOR(t);
+            const vec_t frac = SUB(t, fl);
+            /* t just below an integer: t - floor(t) rounds to 1, fold it to 0 and one more unit */
+            const mask_t wrap = CMP_GE(frac, one);
+            Q[v] = CLEAR(wrap, frac);
+            W[v] = ADD(ADD(W[v], fl), KEEP(wrap, one));
+            const vec_t xq = ADD(xv, Q[v]);
+            X[v] = MASK_SUB(CMP_GE(xq, one), xq, one);
+            DP[v] = ADD(DP[v], MUL(k_slope, DX[v]));
+            DX[v] = ADD(DX[v], DP[v]);
+        }
+        if (((uint64_t)(step0 + s + 1) & (RENORM_CHECK_EVERY - 1)) == 0) {
+            for (int v = 0; v < NV; v++) {
+                const int lanes = LANES_GT(ABS(DX[v]), threshold);
+                if (lanes)
+                    renormalise(lanes, &DX[v], &DP[v], &L[v]);
+            }
+        }
+    }
+    STORE_LANES();
+}
 
 /* The block of points [i, i + count) (count <= BLOCK), padded with copies of the last one. */
 static void advance_points(const force_t *m, int64_t step0, int64_t steps, int64_t i, int64_t count,

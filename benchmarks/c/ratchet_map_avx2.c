@@ -31,54 +31,18 @@
 #ifndef __AVX2__
 #error "needs a CPU with AVX2 (compile with -march=native on one)"
 #endif
-#ifndef NV
-#error "compile with -DNV=<vectors per block>"
-#endif
 
 #define WIDTH 4
 typedef __m256d vec_t;
-#define SET1 _mm256_set1_pd
-#define LOADU _mm256_loadu_pd
-#define STOREU _mm256_storeu_pd
+typedef __m256d mask_t; /* all ones in the lanes set */
+#define PD(op) _mm256_##op##_pd
+#define FLOOR(t) _mm256_round_pd(t, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC)
+#define CMP_GE(a, b) _mm256_cmp_pd(a, b, _CMP_GE_OQ)
+#define CLEAR(m, v) _mm256_andnot_pd(m, v)
+#define KEEP(m, v) _mm256_and_pd(m, v)
+#define MASK_SUB(m, a, b) _mm256_blendv_pd(a, _mm256_sub_pd(a, b), m)
+#define ABS(v) _mm256_and_pd(v, _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL)))
+#define LANES_GT(a, b) _mm256_movemask_pd(_mm256_cmp_pd(a, b, _CMP_GT_OQ))
 
 #include "blocks.h"
-
-/* Advance the BLOCK points at x..lsum (w: whole units gained, float64) by `steps` iterations. */
-static void advance_block(const force_t *m, int64_t step0, int64_t steps, double *x, double *q, double *w,
-                          double *dx, double *dp, double *lsum)
-{
-    const __m256d one = _mm256_set1_pd(1.0);
-    const __m256d threshold = _mm256_set1_pd(RENORM_THRESHOLD);
-    const __m256d abs_mask = _mm256_castsi256_pd(_mm256_set1_epi64x(0x7fffffffffffffffLL));
-    __m256d X[NV], Q[NV], W[NV], DX[NV], DP[NV], L[NV];
-    LOAD_LANES();
-    for (int64_t s = 0; s < steps; s++) {
-        for (int v = 0; v < NV; v++) {
-            const __m256d xv = X[v];
-            __m256d kick, k_slope; /* K f and K f' (Eq. fx) */
-            force_kick(xv, m, &kick, &k_slope);
-            const __m256d t = _mm256_add_pd(Q[v], kick);
-            const __m256d fl = _mm256_round_pd(t, _MM_FROUND_TO_NEG_INF | _MM_FROUND_NO_EXC);
-            const __m256d frac = _mm256_sub_pd(t, fl);
-            /* t just below an integer: t - floor(t) rounds to 1, fold it to 0 and one more unit */
-            const __m256d wrap = _mm256_cmp_pd(frac, one, _CMP_GE_OQ);
-            Q[v] = _mm256_andnot_pd(wrap, frac);
-            W[v] = _mm256_add_pd(_mm256_add_pd(W[v], fl), _mm256_and_pd(wrap, one));
-            const __m256d xq = _mm256_add_pd(xv, Q[v]);
-            const __m256d ge = _mm256_cmp_pd(xq, one, _CMP_GE_OQ);
-            X[v] = _mm256_blendv_pd(xq, _mm256_sub_pd(xq, one), ge);
-            DP[v] = _mm256_add_pd(DP[v], _mm256_mul_pd(k_slope, DX[v]));
-            DX[v] = _mm256_add_pd(DX[v], DP[v]);
-        }
-        if (((uint64_t)(step0 + s + 1) & (RENORM_CHECK_EVERY - 1)) == 0) {
-            for (int v = 0; v < NV; v++) {
-                const __m256d big = _mm256_cmp_pd(_mm256_and_pd(DX[v], abs_mask), threshold, _CMP_GT_OQ);
-                const int lanes = _mm256_movemask_pd(big);
-                if (lanes)
-                    renormalise(lanes, &DX[v], &DP[v], &L[v]);
-            }
-        }
-    }
-    STORE_LANES();
-}
 

@@ -229,9 +229,9 @@ def test_classifier_benchmark_quick(capsys):
     report = json.loads(capsys.readouterr().out)
     assert len(report["cases"]) == len(module.CASES)
     for case in report["cases"]:
-        ftle = case["classifiers"]["ftle"]
+        ftle = case["indicators"]["ftle"]
         assert ftle["agreement"][-1] == [2000, 1.0]  # the reference agrees with itself
-        for result in case["classifiers"].values():
+        for result in case["indicators"].values():
             steps = result["steps_to_999"]
             assert steps is None or steps in [n for n, _ in result["agreement"]]
             assert all(0.0 <= share <= 1.0 for _, share in result["agreement"])

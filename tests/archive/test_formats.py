@@ -184,6 +184,9 @@ def test_archive_v2_without_history_opens_and_resumes_with_a_verdict(tmp_path, c
     with open_archive(ARCHIVE_V2) as arc:
         assert arc.format_version == 2 and arc.features == () and arc.history is None
         assert arc.checkpoint_step == STEPS and arc.settings["threshold_rule"] == "strict"
+        # The file stores the indicator under its former name, classifier.
+        assert "classifier" in arc.h5["settings"].attrs and "classifier" not in arc.settings
+        assert arc.settings["indicator"] == "ftle" and arc.spec.indicator == "ftle"
         with pytest.raises(ValueError, match="has no history"):
             arc.to_pandas("history")
     path = tmp_path / "v2.h5"

@@ -125,10 +125,10 @@ def test_api_bad_inputs():
         ens.run(10, chunk_steps=0)
     with pytest.raises(ValueError, match="missing fields"):
         Ensemble.from_state(p, {"x": np.zeros(3)}, 0)
-    from warpratchet.observables import acceleration
+    from warpratchet.observables import finite_time_acceleration
 
     with pytest.raises(ValueError, match="step = 0"):
-        acceleration(ens.state(), 0)
+        finite_time_acceleration(ens.state(), 0)
 
 
 def test_samplers_are_seeded_and_in_range():

@@ -8,7 +8,13 @@ import pytest
 
 from warpratchet import observables
 from warpratchet.ensemble import Ensemble
-from warpratchet.observables import AMBIGUITY_FACTOR, acceleration, lyapunov, mean_stderr, summarize
+from warpratchet.observables import (
+    AMBIGUITY_FACTOR,
+    finite_time_acceleration,
+    lyapunov,
+    mean_stderr,
+    summarize,
+)
 from warpratchet.params import MapParams
 
 EPS = np.finfo(np.float64).eps
@@ -16,7 +22,7 @@ EPS = np.finfo(np.float64).eps
 
 def _whole_array_summary(state: dict, step: int, threshold: float) -> dict:
     """The summary from NumPy's reductions over the whole arrays (summarize before chunking)."""
-    ftle, acc = lyapunov(state, step), acceleration(state, step)
+    ftle, acc = lyapunov(state, step), finite_time_acceleration(state, step)
     mask = ftle > threshold
     a, a_err = mean_stderr(acc[mask])
     ambiguous = (ftle > threshold / AMBIGUITY_FACTOR) & (ftle < threshold * AMBIGUITY_FACTOR)
@@ -62,7 +68,7 @@ def test_in_many_chunks_the_summary_is_one_chunks_within_the_pairwise_rounding_b
     many = summarize(state, steps, threshold)
     for name in ("chaotic_points", "lyapunov_min", "chaotic_fraction", "threshold", "step"):
         assert getattr(many, name) == getattr(one, name), name
-    ftle, acc = lyapunov(state, steps), acceleration(state, steps)
+    ftle, acc = lyapunov(state, steps), finite_time_acceleration(state, steps)
     mask = ftle > threshold
     n = int(mask.sum())
     gamma = (math.ceil(math.log2(n)) + 2) * EPS
@@ -80,3 +86,21 @@ def test_in_many_chunks_the_summary_is_one_chunks_within_the_pairwise_rounding_b
     tolerance = (ambiguous.sum() * moved_a + 2 * gamma * deviations.sum()) / (n - ambiguous.sum())
     tolerance += final * one.classification_bound
     assert abs(many.classification_bound - one.classification_bound) <= tolerance
+
+
+def test_the_per_point_a_n_is_named_apart_from_a_and_acceleration_still_works():
+    # A_n per point is finite_time_acceleration; A is the summary's mean and theory.acceleration.
+    import warpratchet
+    from warpratchet import theory
+
+    state = Ensemble.sample(MapParams(3.0, 0.1, 0.01), 300, "strip", seed=2, threads=1).run(60).state()
+    per_point = finite_time_acceleration(state, 60)
+    assert per_point.shape == (300,)
+    assert warpratchet.finite_time_acceleration is finite_time_acceleration
+    assert callable(theory.acceleration)  # the closed form keeps its name
+    with pytest.warns(DeprecationWarning, match="observables.acceleration is spelled"):
+        assert observables.acceleration is finite_time_acceleration
+    with pytest.warns(DeprecationWarning, match="warpratchet.acceleration is spelled"):
+        assert warpratchet.acceleration is finite_time_acceleration
+    with pytest.raises(AttributeError, match="has no attribute 'accelerations'"):
+        _ = observables.accelerations

@@ -18,7 +18,7 @@ from warpratchet.cli import main
 from warpratchet.observables import (
     AMBIGUITY_FACTOR,
     MIN_CHAOTIC_POINTS,
-    acceleration,
+    finite_time_acceleration,
     lyapunov,
     reliability,
     summarize,
@@ -85,7 +85,7 @@ def test_the_classification_bound_bounds_every_reclassification_of_the_band(step
     ens.run(steps)
     state = ens.state()
     s = summarize(state, steps)
-    ftle, acc = lyapunov(state, steps), acceleration(state, steps)
+    ftle, acc = lyapunov(state, steps), finite_time_acceleration(state, steps)
     for factor in np.geomspace(1 / AMBIGUITY_FACTOR, AMBIGUITY_FACTOR, 13)[1:-1]:
         mask = ftle > s.threshold * factor
         if mask.sum() and math.isfinite(s.classification_bound):

@@ -18,7 +18,7 @@ from warpratchet.cli import build_parser
 from warpratchet.errors import ParameterError
 from warpratchet.limits import MAX_POINTS
 from warpratchet.params import MapParams
-from warpratchet.spec import CLASSIFIERS, MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS, SweepSpec
+from warpratchet.spec import INDICATORS, MAX_CHUNK_STEPS, MAX_THREADS, SAMPLERS, SweepSpec
 
 DATA = Path(__file__).parent.parent / "data"
 
@@ -47,7 +47,7 @@ _valid_specs = st.builds(
     points=st.integers(1, MAX_POINTS),
     seed=st.integers(0, 2**63 - 1),
     steps=st.integers(1, 2**63 - 1),
-    classifier=st.sampled_from(CLASSIFIERS),
+    indicator=st.sampled_from(INDICATORS),
     threshold=st.none() | st.floats(0.0, 1e300),
     threads=st.none() | st.integers(1, MAX_THREADS),
     device=st.sampled_from(["cpu", "cuda:0"]),
@@ -74,7 +74,7 @@ def test_every_valid_spec_round_trips_through_json_and_hdf5_attributes(spec):
         ({"threads": MAX_THREADS + 1}, f"threads = {MAX_THREADS + 1} is outside"),
         ({"chunk_steps": 2**31}, "chunk_steps = 2147483648 is outside"),
         ({"init": "disk"}, "init = 'disk' is not one of strip, torus, grid"),
-        ({"classifier": "gali"}, "classifier = 'gali'"),
+        ({"indicator": "gali"}, "indicator = 'gali'"),
         ({"device": ""}, "device = ''"),
         ({"K": 4.0}, "K = 4.0 is outside the allowed range 0 < K < 4"),
         ({"b1": 0.6, "b2": 0.5}, r"b1 \+ b2 = 1.1 is outside the allowed range b1 \+ b2 < 1"),
@@ -138,7 +138,35 @@ def test_choices_are_the_ones_the_code_implements():
 
     assert ensemble.SAMPLERS == SAMPLERS
     # sumrule keeps its own tuple until the house branches merge; they must agree.
-    assert tuple(sumrule.CLASSIFIERS) == CLASSIFIERS
+    assert tuple(sumrule.INDICATORS) == INDICATORS
+
+
+def test_the_chaos_indicator_is_named_indicator_and_classifier_still_works():
+    # One name, indicator, as the sum rule's modules and the kernel; the former spelling keeps
+    # working for one release: the keyword, the constant and (archives) the attribute.
+    from warpratchet import spec, sumrule
+
+    with pytest.warns(DeprecationWarning, match=r"RunSpec\(classifier=\.\.\.\) is spelled indicator="):
+        old = RunSpec(K=3, b1=0.1, b2=0.01, classifier="megno")
+    assert old == RunSpec(K=3, b1=0.1, b2=0.01, indicator="megno")
+    with pytest.warns(DeprecationWarning, match="spec.CLASSIFIERS is spelled warpratchet.spec.INDICATORS"):
+        assert spec.CLASSIFIERS == INDICATORS
+    with pytest.warns(DeprecationWarning, match="INDICATORS"):
+        assert sumrule.indicators.CLASSIFIERS == INDICATORS
+    with pytest.warns(DeprecationWarning, match=r"default_threshold\(classifier=\.\.\.\)"):
+        assert sumrule.default_threshold(classifier="megno", step=10) == sumrule.MEGNO_THRESHOLD
+    assert RunSpec.from_attrs({"K": 3, "b1": 0.1, "b2": 0.01, "classifier": "fli"}).indicator == "fli"
+
+
+def test_the_former_flag_classifier_still_sets_the_indicator_and_says_its_name(capsys):
+    argv = ["sumrule", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--points", "10"]
+    assert build_parser().parse_args(argv).indicator == "ftle"
+    assert capsys.readouterr().err == ""
+    assert build_parser().parse_args([*argv, "--classifier", "megno"]).indicator == "megno"
+    assert capsys.readouterr().err == "warpratchet: warning: --classifier is spelled --indicator\n"
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    text = sub.choices["sumrule"].format_help()
+    assert "--indicator" in text and "--classifier" not in text  # a hidden alias
 
 
 def test_run_flags_are_the_spec_fields_with_dashes_and_their_defaults():

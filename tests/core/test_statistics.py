@@ -18,7 +18,7 @@ import pytest
 
 from warpratchet import theory
 from warpratchet.ensemble import Ensemble
-from warpratchet.observables import acceleration, lyapunov, summarize
+from warpratchet.observables import finite_time_acceleration, lyapunov, summarize
 from warpratchet.params import MapParams
 
 POINTS = 20_000
@@ -68,7 +68,7 @@ def test_torus_mean_of_A_n_vanishes(K, b1, b2):
     p = MapParams(K, b1, b2)
     ens = Ensemble.sample(p, POINTS, "torus", seed=4)
     ens.run(5_000)
-    a = acceleration(ens.state(), ens.step)
+    a = finite_time_acceleration(ens.state(), ens.step)
     stderr = a.std(ddof=1) / math.sqrt(a.size)
     assert abs(a.mean()) < 4 * stderr
 

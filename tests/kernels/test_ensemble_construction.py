@@ -58,3 +58,20 @@ def test_from_state_copies_the_state():
     state["x"][:] = 0.5  # the caller's dict is not the ensemble's state
     for name, values in ens.state().items():
         np.testing.assert_array_equal(again.array(name), values, err_msg=name)
+
+
+def test_the_initial_conditions_are_named_init_and_sampler_still_works():
+    # One name, init, as in RunSpec, --init and the archive's settings; sampler= keeps working.
+    sampled = Ensemble.sample(P, 64, "torus", seed=3, threads=1)
+    assert (sampled.init, sampled.seed) == ("torus", 3)
+    assert Ensemble(P, np.zeros(4), np.zeros(4), threads=1).init == "user"
+    with pytest.warns(DeprecationWarning, match=r"Ensemble\(sampler=\.\.\.\) is spelled init="):
+        old = Ensemble(P, np.zeros(4), np.zeros(4), threads=1, sampler="strip", seed=1)
+    assert old.init == "strip"
+    with pytest.warns(DeprecationWarning, match=r"from_state\(sampler=\.\.\.\) is spelled init="):
+        again = Ensemble.from_state(P, sampled.state(), sampled.step, threads=1, sampler="torus")
+    assert again.init == "torus"
+    with pytest.warns(DeprecationWarning, match="Ensemble.sampler is spelled Ensemble.init"):
+        assert sampled.sampler == "torus"
+    with pytest.raises(TypeError, match="give init= only"):
+        Ensemble(P, np.zeros(4), np.zeros(4), sampler="strip", init="strip")

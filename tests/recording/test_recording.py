@@ -21,8 +21,8 @@ from support import run_argv
 from warpratchet import Ensemble, MapParams, theory
 from warpratchet.cli import main as cli_main
 from warpratchet.observables import (
-    acceleration,
     default_lyapunov_threshold,
+    finite_time_acceleration,
     lyapunov,
     lyapunov_threshold,
     summarize,
@@ -157,7 +157,7 @@ def test_class_colouring_matches_an_independent_classification(tmp_path):
     assert sorted(frames) == [0, 200, 400]
     assert np.all(frames[0]["class_ids"] == 0)  # nothing is known before the first step
     state = ens.state()
-    ftle, acc = lyapunov(state, 400), acceleration(state, 400)
+    ftle, acc = lyapunov(state, 400), finite_time_acceleration(state, 400)
     expected = np.where(ftle > default_lyapunov_threshold(400), 1, 0)
     expected[expected == 0] = np.select(
         [np.rint(acc) == 1, np.rint(acc) == -1, np.rint(acc) == 0], [2, 3, 4], 5

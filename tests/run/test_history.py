@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from support import quick_benchmark, run_argv, same_history
 
-from warpratchet import Ensemble, MapParams, Observer, RunSpec, acceleration, lyapunov, summarize
+from warpratchet import Ensemble, MapParams, Observer, RunSpec, finite_time_acceleration, lyapunov, summarize
 from warpratchet.archive._rows import snapshot_indices
 from warpratchet.cli import main
 from warpratchet.history import (
@@ -126,7 +126,7 @@ def test_block_gains_are_the_momentum_gains_of_a_fixed_subsample_at_equal_blocks
         p0 = state["p0"]
         exact = (state["winding"] + (state["q"] - (p0 - np.floor(p0))))[idx]  # A_n * n before the division
         assert np.array_equal(gain, exact)
-        assert np.allclose(gain / step, acceleration(state, step)[idx], rtol=0, atol=1e-15)
+        assert np.allclose(gain / step, finite_time_acceleration(state, step)[idx], rtol=0, atol=1e-15)
         assert np.array_equal(ftle, lyapunov(state, step)[idx])
     gains, reason = history.block_gains(target)
     assert reason == "" and gains.shape[0] == 64

@@ -175,7 +175,7 @@ RUN_SETTINGS = (
     "init",
     "points",
     "seed",
-    "classifier",
+    "indicator",
     "threshold",
     "threshold_rule",
     "threads",
@@ -240,10 +240,10 @@ def run_settings(
     """The settings of a new archive of ``ensemble`` under RunSpec's names (:func:`read_settings`' form)."""
     return {
         **ensemble.params.as_dict(derived=False),
-        "init": ensemble.sampler,
+        "init": ensemble.init,
         "points": ensemble.points,
         "seed": ensemble.seed,
-        "classifier": "ftle",
+        "indicator": "ftle",
         "threshold": threshold,
         "threshold_rule": threshold_rule,
         "threads": ensemble.threads,
@@ -268,7 +268,7 @@ def read_settings(attrs: h5py.AttributeManager, version: int) -> dict[str, Any]:
             settings["seed"] = None
         if isinstance(settings.get("threshold"), float) and math.isnan(settings["threshold"]):
             settings["threshold"] = None
-        settings.setdefault("classifier", "ftle")
+        settings.setdefault("indicator", "ftle")
     settings.setdefault("threshold_rule", "strict")  # archives written before the rule existed
     for name in RUN_SETTINGS + ARCHIVE_SETTINGS:
         settings.setdefault(name, None)

@@ -277,7 +277,7 @@ class Archive:
         """An :class:`Ensemble` of this archive's run holding ``state`` at ``step`` (with the
         ``transport`` feature: :func:`.transport.restore`, counting from ``transport``)."""
         init, seed = self.settings["init"], self.settings["seed"]
-        kwargs = {"device": device, "threads": threads, "sampler": init, "seed": seed}
+        kwargs = {"device": device, "threads": threads, "init": init, "seed": seed}
         if TRANSPORT_FEATURE not in self.features:
             return Ensemble.from_state(self.params, state, step, **kwargs)
         settings = self.settings

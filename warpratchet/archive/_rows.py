@@ -43,7 +43,7 @@ from h5py import h5s
 from .._files import ensure_space, sync_h5
 from .._h5verify import chunk_past_end, first_line, read_rows, refresh
 from ..ensemble import STATE_FIELDS
-from ..observables import acceleration, lyapunov
+from ..observables import finite_time_acceleration, lyapunov
 from ..sampling import salted_subsample
 from ._format import ROW_CHUNK, SLOTS, SNAPSHOT_FIELDS, TEXT_CHECKSUM, ArchiveError, text_checksum
 
@@ -387,7 +387,7 @@ def snapshot_row(live: dict[str, np.ndarray], indices: np.ndarray, step: int) ->
         "x": sub["x"],
         "p": sub["q"],  # p mod 1 is exactly q
         "ftle": lyapunov(sub, step),
-        "A": acceleration(sub, step),
+        "A": finite_time_acceleration(sub, step),
     }
 
 

@@ -95,7 +95,7 @@ EXAMPLES = {
     ],
     "sumrule": [
         "warpratchet sumrule --K 2.99 --b1 0.25 --b2 0.05 --points 100000 --steps 30000",
-        "warpratchet sumrule --K 3 --b1 0.1 --b2 0.01 --grid 300 --classifier megno --json",
+        "warpratchet sumrule --K 3 --b1 0.1 --b2 0.01 --grid 300 --indicator megno --json",
     ],
     "orbits": [
         "warpratchet orbits --K 3 --b1 0.1 --b2 0.01 --period 1 --json",

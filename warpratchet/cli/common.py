@@ -22,7 +22,7 @@ from typing import Any, NoReturn
 from ..errors import ParameterError, Terminated, check_count
 from ..progress import ProgressBar
 from ..runloop import deferred_interrupts
-from ..spec import RunSpec, setting_of
+from ..spec import RENAMED, RunSpec, setting_of
 
 __all__ = [
     "UsageError",
@@ -243,6 +243,22 @@ def spec_flag(
     else:
         kwargs["type"] = _typed(setting.kind, lambda value: setting.validate(name, value))
     parser.add_argument(flag_name(name), dest=name, **kwargs)
+    for old in (old for old, new in RENAMED.items() if new == name):
+        kwargs = {**kwargs, "default": argparse.SUPPRESS, "required": False, "help": argparse.SUPPRESS}
+        parser.add_argument(flag_name(old), dest=name, action=_FormerFlag, now=flag_name(name), **kwargs)
+
+
+class _FormerFlag(argparse.Action):
+    """The former spelling of a setting's flag (:data:`~warpratchet.spec.RENAMED`), left out of
+    ``--help``: it sets the setting and says on stderr what the flag is called now."""
+
+    def __init__(self, *args: Any, now: str, **kwargs: Any) -> None:
+        self.now = now
+        super().__init__(*args, **kwargs)
+
+    def __call__(self, parser: Any, namespace: argparse.Namespace, values: Any, option_string: Any = None):
+        print(f"warpratchet: warning: {option_string} is spelled {self.now}", file=sys.stderr)
+        setattr(namespace, self.dest, values)
 
 
 def spec_flags(parser: Any, names: Iterable[str], **overrides: dict[str, Any]) -> None:

@@ -29,7 +29,7 @@ def run_report(
         "points": ensemble.points,
         "steps": ensemble.step,
         "seed": ensemble.seed,
-        "init": ensemble.sampler,
+        "init": ensemble.init,
         "threads": ensemble.threads,
         "A_theory": theory.summary(p)["A"],
         **summary,

@@ -21,9 +21,9 @@ from .report import history_report, print_report, run_report
 from .sharded import add_cluster_flags, check_cluster_flags
 from .sinks import add_archive_flags, add_rerun_flags, archive_plan, rerun_sink
 
-#: The RunSpec settings ``run`` takes as flags: all but the classifier (``run`` reports the FTLE's
+#: The RunSpec settings ``run`` takes as flags: all but the indicator (``run`` reports the FTLE's
 #: A and Lyapunov exponent; ``sumrule`` has the other indicators).
-RUN_SETTINGS = tuple(f.name for f in dataclasses.fields(RunSpec) if f.name != "classifier")
+RUN_SETTINGS = tuple(f.name for f in dataclasses.fields(RunSpec) if f.name != "indicator")
 
 
 #: Upper bounds of the kernels' speed in point-steps per second (about 8x what a CPU thread and

@@ -2,7 +2,7 @@
 
 Samples the torus (``--points``) or a lattice (``--grid``), so the run's defaults differ from
 ``run``'s: 10^5 points, 30000 steps (at least ``8 m_max^3``), the threshold of the chosen
-indicator (``--classifier``).
+indicator (``--indicator``).
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ def add(sub) -> None:
     )
     spec_flags(
         p,
-        ("classifier", "threshold", "seed", "threads", "device"),
+        ("indicator", "threshold", "seed", "threads", "device"),
         threshold={"help": "indicator value above which a point is chaotic (default: per indicator)"},
         seed={"help": "NumPy seed for --points (default 0)"},
     )
@@ -50,7 +50,7 @@ def _print_census(result, out: dict) -> None:
     err = "+-" if result.error_kind == "stderr" else "bound"
     print(
         f"{map_text(vars(result))}: {result.points} points ({result.sampling}) "
-        f"x {result.steps} steps, classifier {result.classifier}"
+        f"x {result.steps} steps, indicator {result.indicator}"
     )
     print(f"  {'nu':>8} {'w':>4} {'m':>3} {'area':>10}  {err:>9}  chaotic")
     print(f"  {'C':>8} {'':>4} {'':>3} {result.S_C:10.6f}  {result.S_C_stderr:9.2g}")
@@ -65,7 +65,7 @@ def _print_census(result, out: dict) -> None:
             f"{result.unidentified_area_stderr:9.2g}  (regular, no nu with m <= {result.m_max})"
         )
     print(
-        f"  C: chaotic by {result.classifier} and locked to no nu; by {result.classifier} alone "
+        f"  C: chaotic by {result.indicator} and locked to no nu; by {result.indicator} alone "
         f"(islands' chaotic points too) S_C = {result.S_C_indicator:.6f} {err} "
         f"{result.S_C_indicator_stderr:.2g}"
     )
@@ -100,7 +100,7 @@ def command(args: argparse.Namespace) -> int:
         grid=args.grid,
         seed=args.seed,
         m_max=args.m_max,
-        classifier=args.classifier,
+        indicator=args.indicator,
         threshold=args.threshold,
         threads=args.threads,
         device=args.device,

@@ -20,7 +20,14 @@ import numpy as np
 
 from ..ensemble import Ensemble, Observer
 from ..errors import check_choice, check_count, check_optional, check_real
-from ..observables import THRESHOLD_RULES, Summary, acceleration, lyapunov, lyapunov_threshold, rule_formula
+from ..observables import (
+    THRESHOLD_RULES,
+    Summary,
+    finite_time_acceleration,
+    lyapunov,
+    lyapunov_threshold,
+    rule_formula,
+)
 from .plan import (
     DEFAULT_MAX_BYTES,
     DEFAULT_MAX_FRAMES,
@@ -154,7 +161,7 @@ class RecordingSink(Observer):
             self.indices = np.sort(rng.choice(n, size=m, replace=False))
         rule = rule_formula(self.threshold_rule)
         info = {
-            "points": f"{n} ({ensemble.sampler}, seed {ensemble.seed})",
+            "points": f"{n} ({ensemble.init}, seed {ensemble.seed})",
             "recorded points": f"{len(self.indices)} (fixed subsample, seed {self.seed})",
             "chaos threshold": rule if self.threshold is None else self.threshold,
         }
@@ -188,7 +195,7 @@ class RecordingSink(Observer):
             self.recording.log_cloud(0, sub["x"], sub["q"])
             return
         ftle = lyapunov(sub, step)
-        acc = acceleration(sub, step) if self.color_by == "class" else None
+        acc = finite_time_acceleration(sub, step) if self.color_by == "class" else None
         threshold = self.threshold
         if threshold is None:
             threshold = lyapunov_threshold(step, self.threshold_rule)

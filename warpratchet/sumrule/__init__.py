@@ -13,7 +13,7 @@ to the ratchet acceleration ``A``: Eq. (sum) ``A_sumrule = -sum_j S_j nu_j / S_C
 
 from .areas import Census, IslandClass, census, lattice
 from .indicators import (
-    CLASSIFIERS,
+    INDICATORS,
     MEGNO_THRESHOLD,
     IndicatorEnsemble,
     chaotic_by,
@@ -31,7 +31,7 @@ from .islands import (
 )
 
 __all__ = [
-    "CLASSIFIERS",
+    "INDICATORS",
     "MEGNO_THRESHOLD",
     "DEFAULT_M_MAX",
     "IndicatorEnsemble",

@@ -25,7 +25,7 @@ import numpy as np
 
 from .. import theory
 from ..ensemble import grid_nodes
-from ..errors import check_count
+from ..errors import check_count, renamed_attribute
 from ..limits import MAX_POINTS
 from ..observables import mean_stderr
 from ..params import MapParams
@@ -70,7 +70,7 @@ class Census:
     steps: int
     seed: int | None
     m_max: int
-    classifier: str
+    indicator: str
     threshold: float
     error_kind: str
     S_C: float
@@ -94,6 +94,8 @@ class Census:
     #: Another force's knots and values (``MapParams.as_dict``), else None.
     knots: str | None = None
     values: str | None = None
+
+    classifier = renamed_attribute("Census", "classifier", "indicator")
 
     def island(self, nu: float) -> IslandClass | None:
         """The island class with mean velocity ``nu`` (exact rational match), if found."""
@@ -170,7 +172,7 @@ def census(
     seed : int
         Seed of the random points.
     **options
-        ``m_max``, ``classifier``, ``threshold``, ``threads``, ``device``, ``observers``: see
+        ``m_max``, ``indicator``, ``threshold``, ``threads``, ``device``, ``observers``: see
         :func:`~warpratchet.sumrule.islands.classify`.
 
     Returns
@@ -269,7 +271,7 @@ def _aggregate(params: MapParams, pc: PointClasses, seed: int | None, grid: int 
         steps=pc.steps,
         seed=seed,
         m_max=pc.m_max,
-        classifier=pc.classifier,
+        indicator=pc.indicator,
         threshold=pc.threshold,
         error_kind="bound" if is_grid else "stderr",
         S_C=s_c,

@@ -16,13 +16,13 @@ import warp as wp
 
 from .. import kernels
 from ..ensemble import Ensemble
-from ..errors import check_choice
+from ..errors import check_choice, renamed_globals, renamed_keyword
 from ..observables import default_lyapunov_threshold, lyapunov
 from ..params import MapParams
-from ..spec import CLASSIFIERS  # the one definition: RunSpec's ``classifier`` choices
+from ..spec import INDICATORS  # the one definition: RunSpec's ``indicator`` choices
 
 __all__ = [
-    "CLASSIFIERS",
+    "INDICATORS",
     "MEGNO_THRESHOLD",
     "IndicatorEnsemble",
     "fli_threshold",
@@ -37,6 +37,9 @@ __all__ = [
 MEGNO_THRESHOLD = 4.0
 
 _INDICATOR_FIELDS = kernels.indicators.INDICATOR_FIELDS
+
+#: ``CLASSIFIERS``, the former name of :data:`INDICATORS`, still works (DeprecationWarning).
+__getattr__ = renamed_globals(__name__, {"CLASSIFIERS": "INDICATORS"}, globals())
 
 
 class IndicatorEnsemble(Ensemble):
@@ -89,22 +92,24 @@ def fli_threshold(step: int) -> float:
     return 2.0 * math.log(step)
 
 
-def default_threshold(classifier: str, step: int) -> float:
-    """The default chaos threshold of ``classifier`` after ``step`` iterations.
+@renamed_keyword("classifier", "indicator")
+def default_threshold(indicator: str, step: int) -> float:
+    """The default chaos threshold of ``indicator`` after ``step`` iterations.
 
     ``"ftle"``: :func:`~warpratchet.observables.default_lyapunov_threshold`;
     ``"megno"``: :data:`MEGNO_THRESHOLD`; ``"fli"``: :func:`fli_threshold`.
     """
-    classifier = check_choice("classifier", classifier, CLASSIFIERS)
-    if classifier == "ftle":
+    indicator = check_choice("indicator", indicator, INDICATORS)
+    if indicator == "ftle":
         return default_lyapunov_threshold(step)
-    if classifier == "megno":
+    if indicator == "megno":
         return MEGNO_THRESHOLD
     return fli_threshold(step)
 
 
+@renamed_keyword("classifier", "indicator")
 def chaotic_by(
-    classifier: str,
+    indicator: str,
     state: dict[str, np.ndarray],
     indicators: dict[str, np.ndarray],
     step: int,
@@ -115,6 +120,6 @@ def chaotic_by(
     ``"ftle"`` reads the FTLE of ``state``, ``"megno"`` and ``"fli"`` the arrays of
     :meth:`IndicatorEnsemble.indicators`; ``threshold`` defaults to :func:`default_threshold`.
     """
-    limit = default_threshold(classifier, step) if threshold is None else threshold
-    values = lyapunov(state, step) if classifier == "ftle" else indicators[classifier]
+    limit = default_threshold(indicator, step) if threshold is None else threshold
+    values = lyapunov(state, step) if indicator == "ftle" else indicators[indicator]
     return values > limit

@@ -23,12 +23,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import errors
 from ..ensemble import Observer
 from ..errors import NonFiniteStateError, check_choice, check_count, check_optional, check_real
 from ..limits import MAX_POINTS, check_memory
-from ..observables import acceleration, lyapunov
+from ..observables import finite_time_acceleration, lyapunov
 from ..params import MapParams
-from .indicators import CLASSIFIERS, IndicatorEnsemble, chaotic_by, default_threshold
+from .indicators import INDICATORS, IndicatorEnsemble, chaotic_by, default_threshold
 
 __all__ = [
     "DEFAULT_M_MAX",
@@ -153,7 +154,7 @@ class PointClasses:
     p0: np.ndarray
     steps: int
     m_max: int
-    classifier: str
+    indicator: str
     threshold: float
     #: Chaotic by the indicator.
     chaotic: np.ndarray
@@ -166,6 +167,8 @@ class PointClasses:
     ftle: np.ndarray
     megno: np.ndarray
     fli: np.ndarray
+
+    classifier = errors.renamed_attribute("PointClasses", "classifier", "indicator")
 
     @property
     def island(self) -> np.ndarray:
@@ -180,6 +183,7 @@ class PointClasses:
         return ~self.chaotic & (self.m == 0)
 
 
+@errors.renamed_keyword("classifier", "indicator")
 def classify(
     params: MapParams,
     x0: np.ndarray,
@@ -187,7 +191,7 @@ def classify(
     steps: int,
     *,
     m_max: int = DEFAULT_M_MAX,
-    classifier: str = "ftle",
+    indicator: str = "ftle",
     threshold: float | None = None,
     threads: int | None = None,
     device: str | None = None,
@@ -203,12 +207,12 @@ def classify(
     steps : int
         Iterations ``n >= min_steps(m_max)``; the momentum is also recorded at
         ``n i / CHECKPOINTS`` for :func:`identify_nu`.
-    m_max, classifier, threshold
+    m_max, indicator, threshold
         See :func:`identify_nu` and :func:`~warpratchet.sumrule.indicators.chaotic_by`.
     threads, device, observers
         Passed to the ensemble and its :meth:`~warpratchet.ensemble.Ensemble.run`.
     """
-    classifier = check_choice("classifier", classifier, CLASSIFIERS)
+    indicator = check_choice("indicator", indicator, INDICATORS)
     steps = check_count("steps", steps, 1)
     m_max = check_count("m_max", m_max, 1)
     threshold = check_optional(check_real, "threshold", threshold, 0.0)
@@ -220,12 +224,12 @@ def classify(
     rise = np.empty((times.size, ens.points))
     for i, k in enumerate(times):
         ens.run(int(k) - ens.step, observers)
-        rise[i] = acceleration(ens.state(), ens.step) * ens.step
+        rise[i] = finite_time_acceleration(ens.state(), ens.step) * ens.step
     state = ens.state()
     ind = ens.indicators()
     _check_finite(state, ind, steps)
     if threshold is None:
-        threshold = default_threshold(classifier, steps)
+        threshold = default_threshold(indicator, steps)
     w, m = identify_nu(rise, times, m_max)
     half = (times.size - 1) // 2
     return PointClasses(
@@ -233,9 +237,9 @@ def classify(
         p0=np.asarray(p0, dtype=np.float64),
         steps=steps,
         m_max=m_max,
-        classifier=classifier,
+        indicator=indicator,
         threshold=float(threshold),
-        chaotic=chaotic_by(classifier, state, ind, steps, threshold),
+        chaotic=chaotic_by(indicator, state, ind, steps, threshold),
         w=w,
         m=m,
         A=rise[-1] / steps,
