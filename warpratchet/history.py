@@ -35,7 +35,10 @@ variance-time fit (module :mod:`warpratchet.convergence`), for 4 MB of archive a
 The run need not stop at the block steps: the history copies the subsample's points when the run
 begins and advances that copy itself to each block step it has passed (points are independent and
 checks sit at global steps, so the copy's states are the run's, bit for bit, at the cost of
-advancing 4096 more points).
+advancing 4096 more points). Where that costs more than stopping (a small ensemble run long: the
+README's 10^4 points x 120 000 steps would advance 41% more points), the run stops at the block
+steps instead and the records are read from the ensemble itself, the same bits
+(:func:`copies_blocks` chooses).
 
 :meth:`History.convergence` turns both into the verdict (:func:`warpratchet.verdict.assess`):
 the drift of A between n/2 and n in units of its standard error and the robust error.
@@ -102,6 +105,10 @@ BLOCKS = 64
 BLOCK_POINTS = 4096
 #: Salt of the subsample's generator, so that it differs from the sampler's and the snapshots'.
 _BLOCK_SALT = 0xB10C
+#: A stop of the run (a launch boundary: every point's state loaded and stored once more, and the
+#: launch itself) costs about as much CPU time as this many steps of every point
+#: (benchmarks/README.md, end_to_end.py).
+STOP_STEPS = 20
 
 
 def log_steps(first: int, target: int, per_decade: int = PER_DECADE) -> list[int]:
@@ -149,6 +156,14 @@ def block_subsample(points: int, seed: int | None, size: int = BLOCK_POINTS) -> 
     points = check_count("points", points, 1)
     m = min(check_count("size", size, 1), points)
     return salted_subsample(points, seed, m, _BLOCK_SALT)
+
+
+def copies_blocks(points: int, subsample: int, steps: int, blocks: int) -> bool:
+    """Whether a history advances its own copy of the ``subsample`` points over the ``steps`` of a run
+    (``subsample x steps`` point-steps) rather than stopping the run of ``points`` points at its
+    ``blocks`` block steps (each about :data:`STOP_STEPS` steps of every point): the cheaper one.
+    Both give the same records, bit for bit."""
+    return subsample * steps <= blocks * STOP_STEPS * points
 
 
 def _none(step: int) -> None:
@@ -263,6 +278,7 @@ class History(Observer):
         self._pending: list[int] = []
         self._block_pending: list[int] = []
         self._blocks: Ensemble | None = None  # the subsample's points, advanced to the block steps
+        self._stop_at_blocks = False  # the run stops at the block steps instead (copies_blocks)
 
     # -- construction from a record ----------------------------------------------------------------
     @classmethod
@@ -333,7 +349,11 @@ class History(Observer):
             n for n in block_steps(ensemble.step, target_step, self.blocks) if n not in done
         ]
         self._blocks = None
-        if self._block_pending:
+        self._stop_at_blocks = False
+        steps, size = target_step - ensemble.step, len(self.block_indices)
+        if self._block_pending and not copies_blocks(ensemble.points, size, steps, len(self._block_pending)):
+            self._stop_at_blocks = True
+        elif self._block_pending:
             # The orbit and tangent of every kernel variant are advance_map's, bit for bit.
             views = ensemble.views()
             sub = {name: np.asarray(views[name])[self.block_indices] for name in STATE_FIELDS}
@@ -341,20 +361,30 @@ class History(Observer):
                 ensemble.params, sub, ensemble.step, device=ensemble.device, threads=1
             )
 
+    def _stops(self) -> list[int]:
+        return self._pending + self._block_pending if self._stop_at_blocks else self._pending
+
     def next_stop(self, step: int) -> int | None:
-        """The next history row's step after ``step`` (the run loop ends a chunk there; block
-        steps need no stop, module docstring)."""
-        later = [n for n in self._pending if n > step]
+        """The next history row's step after ``step`` (the run loop ends a chunk there), or block
+        step where the run stops at those (:func:`copies_blocks`)."""
+        later = [n for n in self._stops() if n > step]
         return min(later) if later else None
 
     def overdue(self, step: int) -> list[int]:
-        """Row steps before ``step`` still waiting for their row (a run that did not stop there)."""
-        return sorted(n for n in self._pending if n < step)
+        """Steps before ``step`` still waiting for their row (or block, where the run stops at
+        those): a run that did not stop there."""
+        return sorted(n for n in self._stops() if n < step)
 
     def after_chunk(self, ensemble: Any, seconds: float) -> None:
         step = ensemble.step
-        for block_step in [n for n in self._block_pending if n <= step]:
-            self._record_block(block_step)
+        if self._stop_at_blocks:
+            if step in self._block_pending:
+                self._block_pending = [n for n in self._block_pending if n > step]
+                views = ensemble.views()  # zero-copy on the CPU
+                self._append_block(step, {name: views[name][self.block_indices] for name in STATE_FIELDS})
+        elif self._blocks is not None:
+            for block_step in [n for n in self._block_pending if n <= step]:
+                self._record_block(block_step)
         if step in self._pending:
             self._pending = [n for n in self._pending if n > step]
             # the ensemble's summary at this step: computed once for every sink that needs it
@@ -367,7 +397,10 @@ class History(Observer):
         """Advance the subsample's copy to ``step`` and record its gain and FTLE there."""
         self._block_pending = [n for n in self._block_pending if n > step]
         self._blocks.run(step - self._blocks.step)
-        sub = self._blocks.views()
+        self._append_block(step, self._blocks.views())
+
+    def _append_block(self, step: int, sub: Mapping[str, np.ndarray]) -> None:
+        """Record the subsample's gain and FTLE at ``step`` from its state ``sub``."""
         self.block_rows["block_step"].append(int(step))
         self.block_rows["block_gain"].append(momentum_gain(sub))
         self.block_rows["block_ftle"].append(lyapunov(sub, step))
@@ -375,6 +408,7 @@ class History(Observer):
     def end(self, ensemble: Any) -> None:
         self.target = None
         self._blocks = None
+        self._stop_at_blocks = False
 
     # -- results -----------------------------------------------------------------------------------
     def as_dict(self) -> dict[str, list]:

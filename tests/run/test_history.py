@@ -21,6 +21,7 @@ from warpratchet.history import (
     History,
     block_steps,
     block_subsample,
+    copies_blocks,
     history_row,
     history_steps,
 )
@@ -284,3 +285,30 @@ def test_the_run_stops_only_at_history_rows_not_at_block_steps():
     ens.run(3000, [history], chunk_steps=3000)
     assert stops == history_steps(0, 3000)
     assert history.block_rows["block_step"] == block_steps(0, 3000)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_small_ensemble_run_long_stops_at_its_block_steps_with_the_same_records(monkeypatch, threads):
+    """Where advancing the subsample's copy costs more than stopping the run (copies_blocks), the run
+    stops at the block steps and reads the records from the ensemble: the same bits as the copy."""
+    import warpratchet.history as history_module
+
+    assert copies_blocks(10**6, 4096, 6000, 64) and not copies_blocks(10**4, 4096, 120_000, 64)
+    histories, stops = [], []
+    for stop_steps in (10**9, 0):  # the copy, then the stops
+        monkeypatch.setattr(history_module, "STOP_STEPS", stop_steps)
+        ens = Ensemble.sample(PARAMS, 300, "strip", seed=5, threads=threads)
+        real, seen = ens._advance, []
+        ens._advance = lambda steps, pool, real=real, seen=seen, ens=ens: (
+            seen.append(ens.step + steps),
+            real(steps, pool),
+        )
+        history = History(block_points=64)
+        ens.run(2000, [history], chunk_steps=2000)
+        histories.append(history)
+        stops.append(seen)
+    assert stops[0] == history_steps(0, 2000)
+    assert stops[1] == sorted(set(history_steps(0, 2000)) | set(block_steps(0, 2000)))
+    assert histories[1].block_rows["block_step"] == block_steps(0, 2000)
+    assert same_history(histories[0], histories[1])
+    assert histories[0].convergence() == histories[1].convergence()
