@@ -170,19 +170,16 @@ def _none(step: int) -> None:
     return None
 
 
-def _variance(state: Mapping[str, np.ndarray], gain: np.ndarray | None = None) -> float:
+def _variance(state: Mapping[str, np.ndarray]) -> float:
     """Variance (ddof 1) of ``p_n - p_0`` over all points, in two passes over chunks of
     :data:`~warpratchet.observables.SUMMARY_CHUNK` points (temporaries of a few MB for any
-    ensemble; one chunk keeps its gains for the second pass instead of computing them again, or
-    takes ``gain``, every point's :func:`momentum_gain`, if the caller has it)."""
+    ensemble; one chunk keeps its gains for the second pass instead of computing them again)."""
     n = len(state["p0"])
     if n < 2:
         return math.nan
     fields = ("winding", "q", "p0")
     parts = [{k: state[k][lo : lo + SUMMARY_CHUNK] for k in fields} for lo in range(0, n, SUMMARY_CHUNK)]
-    kept = None
-    if len(parts) == 1:
-        kept = momentum_gain(parts[0]) if gain is None else gain
+    kept = momentum_gain(parts[0]) if len(parts) == 1 else None
     mean = math.fsum(float(np.add.reduce(momentum_gain(p) if kept is None else kept)) for p in parts) / n
     squares = 0.0
     for part in parts:
@@ -192,7 +189,7 @@ def _variance(state: Mapping[str, np.ndarray], gain: np.ndarray | None = None) -
 
 
 def history_row(
-    state: Mapping[str, np.ndarray], summary: Summary, gain: np.ndarray | None = None
+    state: Mapping[str, np.ndarray], summary: Summary, variance: float | None = None
 ) -> dict[str, Any]:
     """One history row (:data:`HISTORY_FIELDS`) of a state and its summary.
 
@@ -203,8 +200,9 @@ def history_row(
     summary : Summary
         :func:`~warpratchet.observables.summarize` of ``state`` at its global step (``>= 1``),
         with the run's threshold or rule: the row's first six fields are the summary's.
-    gain : ndarray, shape (points,), optional
-        :func:`~warpratchet.observables.momentum_gain` of ``state``, if the caller has it.
+    variance : float, optional
+        The row's ``var_dp_all`` if the caller has it (:meth:`Ensemble.known_variance
+        <warpratchet.ensemble.Ensemble.known_variance>`), else computed here.
     """
     step = summary.step
     n_c = summary.chaotic_points
@@ -218,7 +216,7 @@ def history_row(
         "sigma": summary.lyapunov,
         "chaotic_fraction": summary.chaotic_fraction,
         "chaotic_points": n_c,
-        "var_dp_all": _variance(state, gain),
+        "var_dp_all": _variance(state) if variance is None else variance,
         "var_dp_chaotic": chaotic,
     }
 
@@ -389,7 +387,7 @@ class History(Observer):
             self._pending = [n for n in self._pending if n > step]
             # the ensemble's summary at this step: computed once for every sink that needs it
             summary = ensemble.summary(self.threshold, self.threshold_rule, warn=False)
-            row = history_row(ensemble.views(), summary, getattr(ensemble, "known_gain", _none)(step))
+            row = history_row(ensemble.views(), summary, getattr(ensemble, "known_variance", _none)(step))
             for name in HISTORY_FIELDS:
                 self.rows[name].append(row[name])
 

@@ -312,3 +312,25 @@ def test_a_small_ensemble_run_long_stops_at_its_block_steps_with_the_same_record
     assert histories[1].block_rows["block_step"] == block_steps(0, 2000)
     assert same_history(histories[0], histories[1])
     assert histories[0].convergence() == histories[1].convergence()
+
+
+@pytest.mark.parametrize("threads", ["1", "2"])
+def test_a_runs_report_and_history_equal_those_of_summarize_and_the_reference_variance(
+    monkeypatch, capsys, threads
+):
+    """Every number ``run --json`` reports (the rows, A, its errors, the verdict) is the same with the
+    summaries and variances computed on the run's threads as with ``summarize`` and the history's own
+    variance, bit for bit; the runs differ only in their timings."""
+    argv = run_argv(
+        "--points", "3000", "--steps", "2500", "--seed", "4", "--threads", threads, "--json", "--quiet"
+    )
+    reports = []
+    for on_threads in (True, False):
+        if not on_threads:  # the reference path: summarize, then history_row's own variance
+            monkeypatch.setattr(Ensemble, "_summary_on_threads", lambda self, *args: None)
+        assert main(argv) == 0
+        report = json.loads(capsys.readouterr().out)
+        for timing in ("seconds", "point_steps_per_second"):
+            report.pop(timing)
+        reports.append(report)
+    assert reports[0] == reports[1] and len(reports[0]["history"]["step"]) == len(history_steps(0, 2500))
