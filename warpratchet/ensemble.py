@@ -29,7 +29,14 @@ from . import kernels
 from .errors import ParameterError, check_choice, check_count, check_optional, check_real, renamed_keyword
 from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from .limits import MAX_POINTS, MAX_STEP, check_kernel_range, check_memory, format_bytes
-from .observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, Summary, summarize, summarize_with_variance
+from .observables import (
+    SUMMARY_BYTES_PER_POINT,
+    SUMMARY_CHUNK,
+    TREE_LEAF,
+    Summary,
+    summarize,
+    summarize_with_variance,
+)
 from .params import MapParams
 from .runloop import (
     Observer,
@@ -397,7 +404,7 @@ class Ensemble:
         if self.points > SUMMARY_CHUNK or not wp.get_device(self.device).is_cpu:
             return None
         args = (self.views(), self.step, threshold, threshold_rule, ftle)
-        if self.threads < 2:
+        if self.threads < 2 or self.points < 4 * TREE_LEAF:  # a few leaves: not worth the threads
             done = summarize_with_variance(*args)
         else:
             with ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet-rows") as pool:

@@ -6,6 +6,8 @@ work on archived checkpoints as well as on live ensembles).
 
 from __future__ import annotations
 
+import bisect
+import itertools
 import math
 import warnings
 from collections.abc import Mapping
@@ -339,8 +341,10 @@ def summarize(
 
 
 #: Most values in a leaf of :func:`summarize_with_variance`'s summation trees: a leaf's temporaries
-#: (a few arrays of this length) stay in a core's cache.
+#: (a few arrays of this length) stay in a core's cache. The sums over the gathered values take
+#: leaves of :data:`SUM_LEAF` values (one temporary each, fewer calls).
 TREE_LEAF = 1 << 14
+SUM_LEAF = 1 << 16
 
 
 def pairwise_tree(lo: int, n: int, leaf: int | None = None) -> tuple:
@@ -379,14 +383,14 @@ class _Joined:
 
     def __init__(self, parts: list[np.ndarray]) -> None:
         self.parts = parts
-        self.starts = np.cumsum([0] + [p.size for p in parts])
-        self.size = int(self.starts[-1])
+        self.starts = list(itertools.accumulate((p.size for p in parts), initial=0))
+        self.size = self.starts[-1]
 
     def take(self, lo: int, hi: int) -> np.ndarray:
-        first = int(np.searchsorted(self.starts, lo, side="right")) - 1
+        first = bisect.bisect_right(self.starts, lo) - 1
         pieces = []
         while lo < hi:
-            part, start = self.parts[first], int(self.starts[first])
+            part, start = self.parts[first], self.starts[first]
             end = min(hi, start + part.size)
             pieces.append(part[lo - start : end - start])
             lo, first = end, first + 1
@@ -485,7 +489,8 @@ def summarize_with_variance(
         return None
     c_ftle, c_acc, a_acc = (_Joined([part[i] for part in firsts]) for i in range(3))
     gain_sums = {leaf: total for part in firsts for leaf, total in part[5].items()}
-    m_tree, k_tree = pairwise_tree(0, c_ftle.size), pairwise_tree(0, a_acc.size)
+    # coarser cuts of the same trees: the leaves' sums add up to the same totals
+    m_tree, k_tree = pairwise_tree(0, c_ftle.size, SUM_LEAF), pairwise_tree(0, a_acc.size, SUM_LEAF)
     m_leaves, k_leaves = tree_leaves(m_tree), tree_leaves(k_tree)
 
     def sums_of(values: _Joined, leaves: list, square_from: float | None = None, absolute_from=None):
@@ -493,7 +498,7 @@ def summarize_with_variance(
             part = values.take(lo, hi)
             if square_from is not None:
                 d = part - square_from
-                return np.add.reduce(d * d)
+                return np.add.reduce(np.multiply(d, d, out=d))
             if absolute_from is not None:
                 return np.add.reduce(np.abs(part - absolute_from))
             return np.add.reduce(part)
@@ -516,6 +521,8 @@ def summarize_with_variance(
         jobs += sums_of(a_acc, k_leaves, absolute_from=a_mean)
     if n >= 2:  # history's variance: the mean as a Python float, then the squared deviations
         mean = float(tree_total(tree, gain_sums)) / n
+        tree = pairwise_tree(0, n, SUM_LEAF)
+        leaves = tree_leaves(tree)
         jobs += sums_of(_Joined([gain]), leaves, square_from=mean)
     done = _batched(pool, jobs, batches)
     second = []

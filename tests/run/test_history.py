@@ -324,6 +324,11 @@ def test_a_runs_report_and_history_equal_those_of_summarize_and_the_reference_va
     argv = run_argv(
         "--points", "3000", "--steps", "2500", "--seed", "4", "--threads", threads, "--json", "--quiet"
     )
+    import warpratchet.ensemble
+    import warpratchet.observables
+
+    for module in (warpratchet.ensemble, warpratchet.observables):  # many leaves, on the threads
+        monkeypatch.setattr(module, "TREE_LEAF", 128)
     reports = []
     for on_threads in (True, False):
         if not on_threads:  # the reference path: summarize, then history_row's own variance
