@@ -37,7 +37,14 @@ from .errors import (
 )
 from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from .limits import MAX_POINTS, MAX_STEP, check_kernel_range, check_memory, format_bytes
-from .observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, Summary, lyapunov, momentum_gain, summarize
+from .observables import (
+    SUMMARY_BYTES_PER_POINT,
+    SUMMARY_CHUNK,
+    TREE_LEAF,
+    Summary,
+    summarize,
+    summarize_with_variance,
+)
 from .params import MapParams
 from .runloop import (
     Observer,
@@ -165,7 +172,7 @@ class Ensemble:
         }
         self.points = points
         self._summaries: dict[tuple, Summary] = {}  # (step, threshold, threshold_rule): summary at this step
-        self._per_point: tuple | None = None  # (step, FTLE, gain) of the last summary
+        self._variance: tuple | None = None  # (step, variance of p_n - p_0) of the last summary
 
     @classmethod
     def bytes_per_point(cls) -> int:
@@ -295,7 +302,7 @@ class Ensemble:
 
     def _advance(self, steps: int, pool: ThreadPoolExecutor | None) -> None:
         self._summaries = {}  # the state moves on
-        self._per_point = None
+        self._variance = None
         # One launch advances at most MAX_LAUNCH_STEPS (its loop counter is 32-bit): a longer
         # chunk is split, so that no step is dropped.
         while steps > 0:
@@ -393,37 +400,31 @@ class Ensemble:
         A plain ensemble never has it (:class:`~warpratchet.transport.TransportEnsemble` does)."""
         return None
 
-    def known_gain(self, step: int) -> np.ndarray | None:
-        """Every point's ``p_n - p_0`` (``momentum_gain``) at ``step`` if :meth:`summary` computed it
-        at the current step, else None: a history row's variance takes it instead of computing it
-        again."""
-        values = self._per_point
-        return values[2] if values is not None and values[0] == step == self.step else None
+    def known_variance(self, step: int) -> float | None:
+        """The variance (ddof 1) of every point's ``p_n - p_0`` at ``step`` if :meth:`summary` computed
+        it at the current step (in the same passes), else None: a history row takes it instead of
+        computing it again."""
+        values = self._variance
+        return values[1] if values is not None and values[0] == step == self.step else None
 
-    def _per_point_values(self) -> tuple[np.ndarray, np.ndarray] | None:
-        """Every point's FTLE and ``p_n - p_0`` at the current step, computed on the run's threads
-        in blocks (both are elementwise: the bits of ``lyapunov`` and ``momentum_gain``), or None
-        to leave them to ``summarize``: one thread (where the copies into whole arrays cost more
-        than they save), a GPU, or more points than one summary chunk (whose values ``summarize``
-        never holds all at once)."""
-        if self.threads < 2 or self.points > SUMMARY_CHUNK or not wp.get_device(self.device).is_cpu:
+    def _summary_on_threads(
+        self, threshold: float | None, threshold_rule: str, ftle: np.ndarray | None
+    ) -> Summary | None:
+        """:func:`~warpratchet.observables.summarize_with_variance` of the current state on this
+        ensemble's threads (the variance kept for :meth:`known_variance`), or None to leave the
+        summary to ``summarize``: a GPU, more points than one summary chunk, a value not finite."""
+        if self.points > SUMMARY_CHUNK or not wp.get_device(self.device).is_cpu:
             return None
-        views = self.views()
-        ftle, gain = np.empty(self.points), np.empty(self.points)
-        bounds = np.linspace(0, self.points, 4 * self.threads + 1).astype(int)
-
-        def block(lo: int, hi: int) -> None:
-            part = {name: views[name][lo:hi] for name in STATE_FIELDS}
-            with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # summarize refuses
-                ftle[lo:hi] = lyapunov(part, self.step)
-                gain[lo:hi] = momentum_gain(part)
-
-        pairs = list(zip(bounds[:-1], bounds[1:], strict=True))
-        with ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet-rows") as pool:
-            for future in [pool.submit(block, lo, hi) for lo, hi in pairs]:
-                future.result()
-        self._per_point = (self.step, ftle, gain)
-        return ftle, gain
+        args = (self.views(), self.step, threshold, threshold_rule, ftle)
+        if self.threads < 2 or self.points < 4 * TREE_LEAF:  # a few leaves: not worth the threads
+            done = summarize_with_variance(*args)
+        else:
+            with ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet-rows") as pool:
+                done = summarize_with_variance(*args, pool=pool, batches=4 * self.threads)
+        if done is None:
+            return None
+        self._variance = (self.step, done[1])
+        return done[0]
 
     @renamed_keyword("rule", "threshold_rule")
     def summary(
@@ -445,10 +446,10 @@ class Ensemble:
         key = (self.step, threshold, threshold_rule if threshold is None else None)
         result = self._summaries.get(key)
         if result is None:
-            ftle, gain = self.known_ftle(self.step), None
-            if ftle is None:
-                ftle, gain = self._per_point_values() or (None, None)
-            result = summarize(self.views(), self.step, threshold, threshold_rule, ftle, gain)
+            ftle = self.known_ftle(self.step)
+            result = self._summary_on_threads(threshold, threshold_rule, ftle)
+            if result is None:
+                result = summarize(self.views(), self.step, threshold, threshold_rule, ftle)
             self._summaries[key] = result
         if warn:
             result.warn()

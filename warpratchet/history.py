@@ -35,7 +35,10 @@ variance-time fit (module :mod:`warpratchet.convergence`), for 4 MB of archive a
 The run need not stop at the block steps: the history copies the subsample's points when the run
 begins and advances that copy itself to each block step it has passed (points are independent and
 checks sit at global steps, so the copy's states are the run's, bit for bit, at the cost of
-advancing 4096 more points).
+advancing 4096 more points). Where that costs more than stopping (a small ensemble run long: the
+README's 10^4 points x 120 000 steps would advance 41% more points), the run stops at the block
+steps instead and the records are read from the ensemble itself, the same bits
+(:func:`copies_blocks` chooses).
 
 :meth:`History.convergence` turns both into the verdict (:func:`warpratchet.verdict.assess`):
 the drift of A between n/2 and n in units of its standard error and the robust error.
@@ -102,6 +105,10 @@ BLOCKS = 64
 BLOCK_POINTS = 4096
 #: Salt of the subsample's generator, so that it differs from the sampler's and the snapshots'.
 _BLOCK_SALT = 0xB10C
+#: A stop of the run (a launch boundary: every point's state loaded and stored once more, and the
+#: launch itself) costs about as much CPU time as this many steps of every point
+#: (benchmarks/README.md, end_to_end.py).
+STOP_STEPS = 20
 
 
 def log_steps(first: int, target: int, per_decade: int = PER_DECADE) -> list[int]:
@@ -151,23 +158,28 @@ def block_subsample(points: int, seed: int | None, size: int = BLOCK_POINTS) -> 
     return salted_subsample(points, seed, m, _BLOCK_SALT)
 
 
+def copies_blocks(points: int, subsample: int, steps: int, blocks: int) -> bool:
+    """Whether a history advances its own copy of the ``subsample`` points over the ``steps`` of a run
+    (``subsample x steps`` point-steps) rather than stopping the run of ``points`` points at its
+    ``blocks`` block steps (each about :data:`STOP_STEPS` steps of every point): the cheaper one.
+    Both give the same records, bit for bit."""
+    return subsample * steps <= blocks * STOP_STEPS * points
+
+
 def _none(step: int) -> None:
     return None
 
 
-def _variance(state: Mapping[str, np.ndarray], gain: np.ndarray | None = None) -> float:
+def _variance(state: Mapping[str, np.ndarray]) -> float:
     """Variance (ddof 1) of ``p_n - p_0`` over all points, in two passes over chunks of
     :data:`~warpratchet.observables.SUMMARY_CHUNK` points (temporaries of a few MB for any
-    ensemble; one chunk keeps its gains for the second pass instead of computing them again, or
-    takes ``gain``, every point's :func:`momentum_gain`, if the caller has it)."""
+    ensemble; one chunk keeps its gains for the second pass instead of computing them again)."""
     n = len(state["p0"])
     if n < 2:
         return math.nan
     fields = ("winding", "q", "p0")
     parts = [{k: state[k][lo : lo + SUMMARY_CHUNK] for k in fields} for lo in range(0, n, SUMMARY_CHUNK)]
-    kept = None
-    if len(parts) == 1:
-        kept = momentum_gain(parts[0]) if gain is None else gain
+    kept = momentum_gain(parts[0]) if len(parts) == 1 else None
     mean = math.fsum(float(np.add.reduce(momentum_gain(p) if kept is None else kept)) for p in parts) / n
     squares = 0.0
     for part in parts:
@@ -177,7 +189,7 @@ def _variance(state: Mapping[str, np.ndarray], gain: np.ndarray | None = None) -
 
 
 def history_row(
-    state: Mapping[str, np.ndarray], summary: Summary, gain: np.ndarray | None = None
+    state: Mapping[str, np.ndarray], summary: Summary, variance: float | None = None
 ) -> dict[str, Any]:
     """One history row (:data:`HISTORY_FIELDS`) of a state and its summary.
 
@@ -188,8 +200,9 @@ def history_row(
     summary : Summary
         :func:`~warpratchet.observables.summarize` of ``state`` at its global step (``>= 1``),
         with the run's threshold or rule: the row's first six fields are the summary's.
-    gain : ndarray, shape (points,), optional
-        :func:`~warpratchet.observables.momentum_gain` of ``state``, if the caller has it.
+    variance : float, optional
+        The row's ``var_dp_all`` if the caller has it (:meth:`Ensemble.known_variance
+        <warpratchet.ensemble.Ensemble.known_variance>`), else computed here.
     """
     step = summary.step
     n_c = summary.chaotic_points
@@ -203,7 +216,7 @@ def history_row(
         "sigma": summary.lyapunov,
         "chaotic_fraction": summary.chaotic_fraction,
         "chaotic_points": n_c,
-        "var_dp_all": _variance(state, gain),
+        "var_dp_all": _variance(state) if variance is None else variance,
         "var_dp_chaotic": chaotic,
     }
 
@@ -263,6 +276,7 @@ class History(Observer):
         self._pending: list[int] = []
         self._block_pending: list[int] = []
         self._blocks: Ensemble | None = None  # the subsample's points, advanced to the block steps
+        self._stop_at_blocks = False  # the run stops at the block steps instead (copies_blocks)
 
     # -- construction from a record ----------------------------------------------------------------
     @classmethod
@@ -333,7 +347,11 @@ class History(Observer):
             n for n in block_steps(ensemble.step, target_step, self.blocks) if n not in done
         ]
         self._blocks = None
-        if self._block_pending:
+        self._stop_at_blocks = False
+        steps, size = target_step - ensemble.step, len(self.block_indices)
+        if self._block_pending and not copies_blocks(ensemble.points, size, steps, len(self._block_pending)):
+            self._stop_at_blocks = True
+        elif self._block_pending:
             # The orbit and tangent of every kernel variant are advance_map's, bit for bit.
             views = ensemble.views()
             sub = {name: np.asarray(views[name])[self.block_indices] for name in STATE_FIELDS}
@@ -341,25 +359,35 @@ class History(Observer):
                 ensemble.params, sub, ensemble.step, device=ensemble.device, threads=1
             )
 
+    def _stops(self) -> list[int]:
+        return self._pending + self._block_pending if self._stop_at_blocks else self._pending
+
     def next_stop(self, step: int) -> int | None:
-        """The next history row's step after ``step`` (the run loop ends a chunk there; block
-        steps need no stop, module docstring)."""
-        later = [n for n in self._pending if n > step]
+        """The next history row's step after ``step`` (the run loop ends a chunk there), or block
+        step where the run stops at those (:func:`copies_blocks`)."""
+        later = [n for n in self._stops() if n > step]
         return min(later) if later else None
 
     def overdue(self, step: int) -> list[int]:
-        """Row steps before ``step`` still waiting for their row (a run that did not stop there)."""
-        return sorted(n for n in self._pending if n < step)
+        """Steps before ``step`` still waiting for their row (or block, where the run stops at
+        those): a run that did not stop there."""
+        return sorted(n for n in self._stops() if n < step)
 
     def after_chunk(self, ensemble: Any, seconds: float) -> None:
         step = ensemble.step
-        for block_step in [n for n in self._block_pending if n <= step]:
-            self._record_block(block_step)
+        if self._stop_at_blocks:
+            if step in self._block_pending:
+                self._block_pending = [n for n in self._block_pending if n > step]
+                views = ensemble.views()  # zero-copy on the CPU
+                self._append_block(step, {name: views[name][self.block_indices] for name in STATE_FIELDS})
+        elif self._blocks is not None:
+            for block_step in [n for n in self._block_pending if n <= step]:
+                self._record_block(block_step)
         if step in self._pending:
             self._pending = [n for n in self._pending if n > step]
             # the ensemble's summary at this step: computed once for every sink that needs it
             summary = ensemble.summary(self.threshold, self.threshold_rule, warn=False)
-            row = history_row(ensemble.views(), summary, getattr(ensemble, "known_gain", _none)(step))
+            row = history_row(ensemble.views(), summary, getattr(ensemble, "known_variance", _none)(step))
             for name in HISTORY_FIELDS:
                 self.rows[name].append(row[name])
 
@@ -367,7 +395,10 @@ class History(Observer):
         """Advance the subsample's copy to ``step`` and record its gain and FTLE there."""
         self._block_pending = [n for n in self._block_pending if n > step]
         self._blocks.run(step - self._blocks.step)
-        sub = self._blocks.views()
+        self._append_block(step, self._blocks.views())
+
+    def _append_block(self, step: int, sub: Mapping[str, np.ndarray]) -> None:
+        """Record the subsample's gain and FTLE at ``step`` from its state ``sub``."""
         self.block_rows["block_step"].append(int(step))
         self.block_rows["block_gain"].append(momentum_gain(sub))
         self.block_rows["block_ftle"].append(lyapunov(sub, step))
@@ -375,6 +406,7 @@ class History(Observer):
     def end(self, ensemble: Any) -> None:
         self.target = None
         self._blocks = None
+        self._stop_at_blocks = False
 
     # -- results -----------------------------------------------------------------------------------
     def as_dict(self) -> dict[str, list]:

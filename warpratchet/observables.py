@@ -6,6 +6,8 @@ work on archived checkpoints as well as on live ensembles).
 
 from __future__ import annotations
 
+import bisect
+import itertools
 import math
 import warnings
 from collections.abc import Mapping
@@ -352,6 +354,209 @@ def summarize(
             ftle, acc = kept.get(lo) or _per_point(state, step, lo, hi, known, gain)
             second.append(chunk_squares(ftle, acc, threshold, a_mean, ftle_mean))
     return summary_from_sums(step, threshold, n, first, second)
+
+
+#: Most values in a leaf of :func:`summarize_with_variance`'s summation trees: a leaf's temporaries
+#: (a few arrays of this length) stay in a core's cache. The sums over the gathered values take
+#: leaves of :data:`SUM_LEAF` values (one temporary each, fewer calls).
+TREE_LEAF = 1 << 14
+SUM_LEAF = 1 << 16
+
+
+def pairwise_tree(lo: int, n: int, leaf: int | None = None) -> tuple:
+    """NumPy's pairwise summation tree of the ``n`` values from index ``lo``, cut into leaves of at
+    most ``leaf`` (>= 128; default :data:`TREE_LEAF`) values: a leaf ``(lo, hi)``, or a pair
+    ``(left, right)`` of trees.
+
+    NumPy's sum of a contiguous float64 array (its ``pairwise_sum``) adds more than 128 values as
+    the sum of two halves, the first ``n // 2`` rounded down to a multiple of 8; so the leaves'
+    ``np.add.reduce``, added up the tree (:func:`tree_total`), give ``np.add.reduce`` of all ``n``
+    values bit for bit, whichever threads summed the leaves.
+    """
+    leaf = TREE_LEAF if leaf is None else leaf
+    if n <= leaf:
+        return (lo, lo + n)
+    half = n // 2 - (n // 2) % 8
+    return (pairwise_tree(lo, half, leaf), pairwise_tree(lo + half, n - half, leaf))
+
+
+def tree_leaves(tree: tuple) -> list[tuple[int, int]]:
+    """The leaves ``(lo, hi)`` of a :func:`pairwise_tree`, in order."""
+    if isinstance(tree[0], int):
+        return [tree]
+    return tree_leaves(tree[0]) + tree_leaves(tree[1])
+
+
+def tree_total(tree: tuple, sums: Mapping[tuple[int, int], np.float64]) -> np.float64:
+    """The sum of a :func:`pairwise_tree`'s values from the sums of its leaves (``leaf -> sum``)."""
+    if isinstance(tree[0], int):
+        return sums[tree]
+    return tree_total(tree[0], sums) + tree_total(tree[1], sums)
+
+
+class _Joined:
+    """The concatenation of arrays, read in ranges without concatenating them all."""
+
+    def __init__(self, parts: list[np.ndarray]) -> None:
+        self.parts = parts
+        self.starts = list(itertools.accumulate((p.size for p in parts), initial=0))
+        self.size = self.starts[-1]
+
+    def take(self, lo: int, hi: int) -> np.ndarray:
+        first = bisect.bisect_right(self.starts, lo) - 1
+        pieces = []
+        while lo < hi:
+            part, start = self.parts[first], self.starts[first]
+            end = min(hi, start + part.size)
+            pieces.append(part[lo - start : end - start])
+            lo, first = end, first + 1
+        if len(pieces) == 1:
+            return pieces[0]
+        return np.concatenate(pieces) if pieces else np.empty(0)
+
+
+def _batched(pool: Any, jobs: list, batches: int) -> list:
+    """The results of the zero-argument callables ``jobs``, in order: on ``pool`` in ``batches``
+    contiguous batches, or here without a pool."""
+    if pool is None:
+        return [job() for job in jobs]
+    cuts = np.linspace(0, len(jobs), min(batches, len(jobs)) + 1).astype(int)
+    futures = [
+        pool.submit(lambda part=jobs[a:b]: [job() for job in part])
+        for a, b in zip(cuts[:-1], cuts[1:], strict=True)
+        if b > a
+    ]
+    return [result for future in futures for result in future.result()]
+
+
+def summarize_with_variance(
+    state: dict[str, np.ndarray],
+    step: int,
+    threshold: float | None = None,
+    threshold_rule: str = "strict",
+    ftle: np.ndarray | None = None,
+    pool: Any = None,
+    batches: int = 1,
+) -> tuple[Summary, float] | None:
+    """:func:`summarize` of at most :data:`SUMMARY_CHUNK` points and the variance (ddof 1) of their
+    :func:`momentum_gain` (a history row's ``var_dp_all``), bit for bit, in fewer passes and on
+    ``pool``'s threads.
+
+    The per-point values (FTLE, ``p_n - p_0``, ``A_n``, the masks) are computed leaf by leaf of
+    :func:`pairwise_tree` (cache-sized), the chaotic and ambiguous points' values gathered in
+    order; each sum is then NumPy's pairwise sum rebuilt from its leaves' sums (:func:`tree_total`),
+    so every number is that of :func:`summarize` and of the history's variance. ``batches``: how
+    many pieces each pass is cut into for the pool. Returns None where a value is not finite
+    (:func:`summarize` says which, in its error) or the state is larger than one chunk.
+    """
+    step = check_count("step", step, 1)
+    threshold = check_optional(check_real, "threshold", threshold, 0.0)
+    if threshold is None:
+        threshold = lyapunov_threshold(step, threshold_rule)
+    n = len(state["log_stretch"])
+    if n > SUMMARY_CHUNK or (ftle is not None and np.shape(ftle) != (n,)):
+        return None
+    x = {name: state[name] for name in ("winding", "q", "p0", "dx", "dp", "log_stretch")}
+    gain = np.empty(n)
+    low, high = threshold / AMBIGUITY_FACTOR, threshold * AMBIGUITY_FACTOR
+    tree = pairwise_tree(0, n)
+    leaves = tree_leaves(tree)
+
+    def first_pass(group: list[tuple[int, int]]) -> tuple:
+        size = sum(hi - lo for lo, hi in group)
+        longest = max(hi - lo for lo, hi in group)
+        chaotic_ftle, chaotic_acc, ambiguous_acc = np.empty(size), np.empty(size), np.empty(size)
+        f_buf, a_buf = np.empty(longest), np.empty(longest)
+        m = k = 0
+        least, finite, sums = math.inf, True, {}
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # non-finite: None
+            for lo, hi in group:
+                f, a, g = f_buf[: hi - lo], a_buf[: hi - lo], gain[lo:hi]
+                if ftle is None:  # lyapunov's operations, in its order
+                    np.hypot(x["dx"][lo:hi], x["dp"][lo:hi], out=f)
+                    np.log(f, out=f)
+                    np.add(x["log_stretch"][lo:hi], f, out=f)
+                    np.divide(f, step, out=f)
+                else:
+                    f = ftle[lo:hi]
+                p0 = x["p0"][lo:hi]  # momentum_gain's operations, in its order
+                np.subtract(p0, np.floor(p0, out=a), out=a)
+                np.subtract(x["q"][lo:hi], a, out=a)
+                np.add(x["winding"][lo:hi], a, out=g)
+                sums[lo, hi] = np.add.reduce(g)
+                np.divide(g, step, out=a)
+                finite = finite and bool(np.isfinite(f).all() and np.isfinite(a).all())
+                mask = f > threshold
+                values = f[mask]
+                chaotic_ftle[m : m + values.size] = values
+                chaotic_acc[m : m + values.size] = a[mask]
+                if values.size:
+                    least = min(least, float(values.min()))
+                m += values.size
+                values = a[(f > low) & (f < high)]
+                ambiguous_acc[k : k + values.size] = values
+                k += values.size
+        return chaotic_ftle[:m], chaotic_acc[:m], ambiguous_acc[:k], least, finite, sums
+
+    cuts = np.linspace(0, len(leaves), min(batches, len(leaves)) + 1).astype(int)
+    groups = [leaves[a:b] for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a]
+    firsts = _batched(pool, [lambda g=g: first_pass(g) for g in groups], batches)
+    if not all(part[4] for part in firsts):
+        return None
+    c_ftle, c_acc, a_acc = (_Joined([part[i] for part in firsts]) for i in range(3))
+    gain_sums = {leaf: total for part in firsts for leaf, total in part[5].items()}
+    # coarser cuts of the same trees: the leaves' sums add up to the same totals
+    m_tree, k_tree = pairwise_tree(0, c_ftle.size, SUM_LEAF), pairwise_tree(0, a_acc.size, SUM_LEAF)
+    m_leaves, k_leaves = tree_leaves(m_tree), tree_leaves(k_tree)
+
+    def sums_of(values: _Joined, leaves: list, square_from: float | None = None, absolute_from=None):
+        def job(lo: int, hi: int) -> np.float64:
+            part = values.take(lo, hi)
+            if square_from is not None:
+                d = part - square_from
+                return np.add.reduce(np.multiply(d, d, out=d))
+            if absolute_from is not None:
+                return np.add.reduce(np.abs(part - absolute_from))
+            return np.add.reduce(part)
+
+        return [lambda lo=lo, hi=hi: job(lo, hi) for lo, hi in leaves]
+
+    jobs = sums_of(c_acc, m_leaves) + sums_of(c_ftle, m_leaves)
+    done = _batched(pool, jobs, batches)
+    sum_a = tree_total(m_tree, dict(zip(m_leaves, done[: len(m_leaves)], strict=True)))
+    sum_f = tree_total(m_tree, dict(zip(m_leaves, done[len(m_leaves) :], strict=True)))
+    least = min(part[3] for part in firsts)
+    first = [(sum_a, sum_f, c_ftle.size, least, a_acc.size)]
+    a_mean, ftle_mean = summary_means(first)
+    squares = needs_squares(first)
+    jobs = []
+    if squares:
+        jobs += sums_of(c_acc, m_leaves, square_from=a_mean) + sums_of(
+            c_ftle, m_leaves, square_from=ftle_mean
+        )
+        jobs += sums_of(a_acc, k_leaves, absolute_from=a_mean)
+    if n >= 2:  # history's variance: the mean as a Python float, then the squared deviations
+        mean = float(tree_total(tree, gain_sums)) / n
+        tree = pairwise_tree(0, n, SUM_LEAF)
+        leaves = tree_leaves(tree)
+        jobs += sums_of(_Joined([gain]), leaves, square_from=mean)
+    done = _batched(pool, jobs, batches)
+    second = []
+    if squares:
+        parts = done[: len(m_leaves)], done[len(m_leaves) : 2 * len(m_leaves)]
+        deviations = done[2 * len(m_leaves) : 2 * len(m_leaves) + len(k_leaves)]
+        second = [
+            (
+                tree_total(m_tree, dict(zip(m_leaves, parts[0], strict=True))),
+                tree_total(m_tree, dict(zip(m_leaves, parts[1], strict=True))),
+                tree_total(k_tree, dict(zip(k_leaves, deviations, strict=True))),
+            )
+        ]
+    variance = math.nan
+    if n >= 2:
+        total = 0.0 + float(tree_total(tree, dict(zip(leaves, done[len(done) - len(leaves) :], strict=True))))
+        variance = total / (n - 1)
+    return summary_from_sums(step, threshold, n, first, second), variance
 
 
 def chunk_sums(ftle: np.ndarray, acc: np.ndarray, threshold: float) -> tuple:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import math
 import tracemalloc
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 import pytest
@@ -27,7 +28,7 @@ from warpratchet.limits import (
     kernel_range_error,
     smallest_width,
 )
-from warpratchet.observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, summarize
+from warpratchet.observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, summarize, summarize_with_variance
 from warpratchet.params import MapParams
 from warpratchet.sumrule import census
 from warpratchet.sumrule.indicators import IndicatorEnsemble
@@ -127,6 +128,9 @@ def test_a_summary_needs_at_most_its_stated_working_memory():
     ens = Ensemble.sample(MapParams(3.0, 0.1, 0.01), n, "torus", threads=1).run(64)
     live = {name: ens.array(name) for name in STATE_FIELDS}
     peak = _peak(lambda: summarize(live, ens.step, 0.0))
+    assert peak <= SUMMARY_BYTES_PER_POINT * n, peak / n
+    with ThreadPoolExecutor(2) as pool:  # the same summary and the variance, on threads
+        peak = _peak(lambda: summarize_with_variance(live, ens.step, 0.0, pool=pool, batches=8))
     assert peak <= SUMMARY_BYTES_PER_POINT * n, peak / n
 
 

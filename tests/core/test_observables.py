@@ -104,3 +104,73 @@ def test_the_per_point_a_n_is_named_apart_from_a_and_acceleration_still_works():
         assert warpratchet.acceleration is finite_time_acceleration
     with pytest.raises(AttributeError, match="has no attribute 'accelerations'"):
         _ = observables.accelerations
+
+
+def _same_bits(a: float, b: float) -> bool:
+    return np.float64(a).tobytes() == np.float64(b).tobytes()
+
+
+@pytest.mark.parametrize("n", [1, 7, 128, 129, 1000, 4097, 65_536, 99_999])
+@pytest.mark.parametrize("leaf", [128, 1000, 1 << 14])
+def test_sums_rebuilt_from_the_pairwise_trees_leaves_are_numpys_bit_for_bit(n, leaf):
+    rng = np.random.default_rng(n + leaf)
+    values = rng.standard_normal(n) * 10.0 ** rng.integers(-8, 8, n)
+    tree = observables.pairwise_tree(0, n, leaf)
+    leaves = observables.tree_leaves(tree)
+    assert leaves[0][0] == 0 and leaves[-1][1] == n and all(hi - lo <= leaf for lo, hi in leaves)
+    assert all(a[1] == b[0] for a, b in zip(leaves[:-1], leaves[1:], strict=True))
+    sums = {(lo, hi): np.add.reduce(values[lo:hi]) for lo, hi in leaves}
+    assert _same_bits(observables.tree_total(tree, sums), np.add.reduce(values))
+
+
+def _reference(state: dict, step: int, threshold, rule: str = "strict", ftle=None) -> tuple:
+    from warpratchet.history import _variance
+
+    return summarize(state, step, threshold, rule, ftle), _variance(state)
+
+
+@pytest.mark.parametrize(
+    ("points", "steps", "threshold", "rule"),
+    [
+        (1, 5, None, "strict"),  # no variance, no chaotic point
+        (2, 40, None, "strict"),
+        (777, 100, None, "strict"),  # ambiguous points: a finite, nonzero bound
+        (777, 100, None, "positive"),
+        (40_000, 300, 0.05, "strict"),
+        (40_000, 300, 0.0, "strict"),  # every point chaotic
+        (40_000, 300, 1e9, "strict"),  # none
+        (3000, 20, None, "strict"),  # many ambiguous: an infinite bound
+    ],
+)
+@pytest.mark.parametrize(("threads", "leaf"), [(1, None), (3, 128), (2, 1000)])
+def test_the_summary_with_variance_on_threads_is_summarize_and_the_history_variance_bit_for_bit(
+    monkeypatch, points, steps, threshold, rule, threads, leaf
+):
+    from concurrent.futures import ThreadPoolExecutor
+
+    if leaf is not None:
+        monkeypatch.setattr(observables, "TREE_LEAF", leaf)
+    state = _state(points, steps, seed=points + steps)
+    want, variance = _reference(state, steps, threshold, rule)
+    with ThreadPoolExecutor(threads) as pool:
+        got, var = observables.summarize_with_variance(
+            state, steps, threshold, rule, pool=pool if threads > 1 else None, batches=4 * threads
+        )
+    for name, value in want.as_dict().items():
+        assert got.as_dict()[name] == value or _same_bits(got.as_dict()[name], value), name
+    assert _same_bits(var, variance)
+    ftle = lyapunov(state, steps)  # a caller's FTLE (a transport ensemble's) is taken as given
+    given = observables.summarize_with_variance(state, steps, threshold, rule, ftle=ftle)[0].as_dict()
+    assert all(
+        given[name] == value or _same_bits(given[name], value) for name, value in want.as_dict().items()
+    )
+
+
+def test_the_summary_with_variance_leaves_what_it_cannot_do_to_summarize():
+    state = _state(300, 50, seed=1)
+    state["dx"][7] = np.inf
+    assert observables.summarize_with_variance(state, 50) is None
+    with pytest.raises(ValueError, match="non-finite FTLE"):
+        summarize(state, 50)
+    big = {name: np.zeros(observables.SUMMARY_CHUNK + 1) for name in state}
+    assert observables.summarize_with_variance(big, 50) is None

@@ -21,6 +21,7 @@ from warpratchet.history import (
     History,
     block_steps,
     block_subsample,
+    copies_blocks,
     history_row,
     history_steps,
 )
@@ -284,3 +285,57 @@ def test_the_run_stops_only_at_history_rows_not_at_block_steps():
     ens.run(3000, [history], chunk_steps=3000)
     assert stops == history_steps(0, 3000)
     assert history.block_rows["block_step"] == block_steps(0, 3000)
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+def test_a_small_ensemble_run_long_stops_at_its_block_steps_with_the_same_records(monkeypatch, threads):
+    """Where advancing the subsample's copy costs more than stopping the run (copies_blocks), the run
+    stops at the block steps and reads the records from the ensemble: the same bits as the copy."""
+    import warpratchet.history as history_module
+
+    assert copies_blocks(10**6, 4096, 6000, 64) and not copies_blocks(10**4, 4096, 120_000, 64)
+    histories, stops = [], []
+    for stop_steps in (10**9, 0):  # the copy, then the stops
+        monkeypatch.setattr(history_module, "STOP_STEPS", stop_steps)
+        ens = Ensemble.sample(PARAMS, 300, "strip", seed=5, threads=threads)
+        real, seen = ens._advance, []
+        ens._advance = lambda steps, pool, real=real, seen=seen, ens=ens: (
+            seen.append(ens.step + steps),
+            real(steps, pool),
+        )
+        history = History(block_points=64)
+        ens.run(2000, [history], chunk_steps=2000)
+        histories.append(history)
+        stops.append(seen)
+    assert stops[0] == history_steps(0, 2000)
+    assert stops[1] == sorted(set(history_steps(0, 2000)) | set(block_steps(0, 2000)))
+    assert histories[1].block_rows["block_step"] == block_steps(0, 2000)
+    assert same_history(histories[0], histories[1])
+    assert histories[0].convergence() == histories[1].convergence()
+
+
+@pytest.mark.parametrize("threads", ["1", "2"])
+def test_a_runs_report_and_history_equal_those_of_summarize_and_the_reference_variance(
+    monkeypatch, capsys, threads
+):
+    """Every number ``run --json`` reports (the rows, A, its errors, the verdict) is the same with the
+    summaries and variances computed on the run's threads as with ``summarize`` and the history's own
+    variance, bit for bit; the runs differ only in their timings."""
+    argv = run_argv(
+        "--points", "3000", "--steps", "2500", "--seed", "4", "--threads", threads, "--json", "--quiet"
+    )
+    import warpratchet.ensemble
+    import warpratchet.observables
+
+    for module in (warpratchet.ensemble, warpratchet.observables):  # many leaves, on the threads
+        monkeypatch.setattr(module, "TREE_LEAF", 128)
+    reports = []
+    for on_threads in (True, False):
+        if not on_threads:  # the reference path: summarize, then history_row's own variance
+            monkeypatch.setattr(Ensemble, "_summary_on_threads", lambda self, *args: None)
+        assert main(argv) == 0
+        report = json.loads(capsys.readouterr().out)
+        for timing in ("seconds", "point_steps_per_second"):
+            report.pop(timing)
+        reports.append(report)
+    assert reports[0] == reports[1] and len(reports[0]["history"]["step"]) == len(history_steps(0, 2500))
