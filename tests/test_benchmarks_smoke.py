@@ -222,6 +222,17 @@ def test_end_to_end_benchmark_runs_and_reports_the_kernels_numbers():
             assert 0 < row[key]["min"] <= row[key]["median"] <= row[key]["max"]
 
 
+def test_launch_cost_benchmark_splits_a_launch_into_fixed_and_per_step_parts():
+    """Smoke test of ``benchmarks/launch_cost.py --quick`` (structure; no timing assertions): one
+    row per slice size, and the fixed and per-step parts add up to the one-step launch."""
+    report = quick_benchmark("launch_cost.py")
+    assert [row["points"] for row in report["rows"]] == [1_024, 16_384]
+    for row in report["rows"]:
+        assert row["launch_1_step_s"] > 0 and row["launch_8_steps_s"] > 0
+        parts = (row["fixed_ns_per_point"] + row["step_ns_per_point"]) * row["points"] * 1e-9
+        assert parts == pytest.approx(row["launch_1_step_s"])
+
+
 def test_fig7_tenfold_benchmark_projects_the_figure_from_its_rate():
     """Smoke test of ``benchmarks/fig7_tenfold.py --quick``: 33 x 10^5 x 1.2e6 point-steps over the
     measured rate."""
