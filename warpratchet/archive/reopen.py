@@ -9,15 +9,49 @@ from __future__ import annotations
 import os
 from typing import TypeVar
 
-from .._files import claim
+import numpy as np
+
+from .._files import claim, h5_bytes
 from ..ensemble import Ensemble
-from .names import ArchiveError
-from .resume import salvage
+from .layout import FILL, ROW_CHUNK, STATE_CHUNK
+from .names import SNAPSHOT_FIELDS, ArchiveError
+from .resume import Salvage, salvage
 
 #: The sink class (``ArchiveSink``), passed in by the classmethod ``ArchiveSink.resume``.
 Sink = TypeVar("Sink")
 
 __all__ = ["reopen"]
+
+
+def _rebuilt_bytes(old: Salvage) -> int:
+    """Estimated file space of the data a rebuilt archive holds beside its layout.
+
+    The state arrays (initial, checkpoint, transport state) take chunks of ``STATE_CHUNK``
+    values, the rows whole chunks of ``ROW_CHUNK`` rows (one row per chunk where a row is an
+    array, as a snapshot's); :func:`~warpratchet._storage.h5_bytes` adds HDF5's share.
+    """
+    initial = old.layout["initial"]
+    states = [{k: v for k, v in initial.items() if np.any(v != FILL[k])}]  # a uniform field: no storage
+    if old.step != old.layout["initial_step"]:
+        states.append(old.state)
+        if old.transport_rows is not None:
+            carry = old.ensemble.transport_state()
+            states.append({**carry.carry, "counts": carry.counts})
+    rows = [old.series, old.transport_rows or {}]
+    rows.append({name: getattr(old.snapshots, name) for name in ("steps", *SNAPSHOT_FIELDS)})
+    if old.history is not None:
+        rows += [old.history.rows, old.history.block_rows]
+    total = sum(
+        h5_bytes(v.nbytes, -(-v.size // STATE_CHUNK)) for s in states for v in map(np.asarray, s.values())
+    )
+    for group in rows:
+        for v in map(np.asarray, group.values()):
+            if v.ndim > 1:  # one row per chunk
+                total += h5_bytes(v.nbytes, len(v))
+            else:  # whole chunks of ROW_CHUNK rows
+                chunks = -(-len(v) // ROW_CHUNK)
+                total += h5_bytes(chunks * ROW_CHUNK * v.itemsize, chunks)
+    return total
 
 
 def reopen(
@@ -63,7 +97,7 @@ def reopen(
             fill=old.write,
             rows=old.rows,
             snaps=len(old.snapshots),
-            needed=os.path.getsize(path),  # a rebuilt copy is about as large
+            needed=_rebuilt_bytes(old),  # beside the old file until it takes its name
         )
     finally:
         os.close(old_fd)

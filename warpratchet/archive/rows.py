@@ -17,6 +17,7 @@ import h5py
 import numpy as np
 from h5py import h5s
 
+from .._files import h5_bytes
 from .layout import ROW_CHUNK
 
 __all__ = ["Rows", "set_counter", "fill_rows"]
@@ -69,12 +70,11 @@ class Rows:
         self.staged += 1
 
     def growth_bytes(self, rows: int = 1) -> int:
-        """Bytes of new chunks the next ``rows`` :meth:`put` calls allocate (HDF5 allocates a chunk at
-        its first write)."""
+        """File space of the new chunks the next ``rows`` :meth:`put` calls allocate (HDF5 allocates a
+        chunk at its first write; :func:`~warpratchet._storage.h5_bytes`)."""
         first = self.count + self.staged
         return sum(
-            ds.dtype.itemsize
-            * int(np.prod(ds.chunks))
+            h5_bytes(ds.dtype.itemsize * int(np.prod(ds.chunks)))
             * sum((first + k) % ds.chunks[0] == 0 for k in range(rows))
             for ds in self.datasets.values()
         )

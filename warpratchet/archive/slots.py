@@ -16,7 +16,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .._files import ensure_space, sync_h5
+from .._files import dataset_bytes, ensure_space, h5_bytes, sync_h5
 from ..ensemble import STATE_FIELDS
 from .checks import check_extent, listed, nonfinite, reading
 from .checks import refresh as _refresh
@@ -132,7 +132,8 @@ def write_slot(
     """
     slot = f["checkpoint"][SLOTS[free]]
     if slot["x"].id.get_num_chunks() == 0:  # the slot's first use allocates its space
-        ensure_space(path, sum(v.nbytes for v in state.values()) + extra_bytes, "the checkpoint")
+        needed = sum(dataset_bytes(slot[name]) for name in STATE_FIELDS) + h5_bytes(extra_bytes)
+        ensure_space(path, needed, "the checkpoint")
     set_counter(slot["step"], -1)  # in progress: neither a reader nor a recovery may trust it
     f.flush()
     for name in STATE_FIELDS:

@@ -36,6 +36,7 @@ from .._files import (
     check_new_path,
     claim,
     ensure_space,
+    h5_bytes,
     storage_errors,
     sync_h5,
     try_lock,
@@ -182,7 +183,12 @@ class ArchiveSink(Observer):
                 "indices": indices,
                 "history": history,
             }
-            needed = sum(v.nbytes for k, v in initial.items() if np.any(v != layout.FILL[k]))
+            # A uniform field stays a fill value (no storage); the others take chunks of STATE_CHUNK.
+            needed = sum(
+                h5_bytes(v.nbytes, -(-v.size // layout.STATE_CHUNK))
+                for k, v in initial.items()
+                if np.any(v != layout.FILL[k])
+            )
             self._build(path, contents, ensemble, replace=exists, needed=needed)
         finally:
             if old_fd is not None:
