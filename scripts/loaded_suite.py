@@ -38,6 +38,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=10, help="pytest runs (default 10)")
     parser.add_argument("--per-core", type=int, default=2, help="busy processes per core (default 2)")
+    parser.add_argument("--timeout", type=float, default=3600, help="seconds a run may take (default 3600)")
     parser.add_argument("pytest_args", nargs="*", help="what pytest runs (default: the process/signal tests)")
     args = parser.parse_args(argv)
     cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
@@ -47,20 +48,14 @@ def main(argv: list[str] | None = None) -> int:
         for run in range(1, args.runs + 1):
             start = time.monotonic()
             load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
-            proc = subprocess.run(
-                [
-                    sys.executable,
-                    "-m",
-                    "pytest",
-                    "-q",
-                    "-p",
-                    "no:cacheprovider",
-                    *(args.pytest_args or DEFAULT_TESTS),
-                ],
-                cwd=ROOT,
-                capture_output=True,
-                text=True,
-            )
+            command = [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider"]
+            command += args.pytest_args or DEFAULT_TESTS
+            try:
+                proc = subprocess.run(command, cwd=ROOT, capture_output=True, text=True, timeout=args.timeout)
+            except subprocess.TimeoutExpired as exc:  # a hang: the run fails, naming the command
+                proc = subprocess.CompletedProcess(
+                    command, 1, f"{' '.join(command)}: no end within {exc.timeout:.0f} s", ""
+                )
             summary = (proc.stdout.strip().splitlines() or ["(no output)"])[-1]
             ok = proc.returncode == 0
             passed += ok

@@ -55,6 +55,9 @@ def packed(rgb: np.ndarray) -> np.ndarray:
 def verify(path: Path) -> None:
     """``rerun rrd verify`` (the CLI bundled with rerun-sdk) must accept the file."""
     done = subprocess.run(
-        [sys.executable, "-m", "rerun_cli", "rrd", "verify", str(path)], capture_output=True, text=True
+        [sys.executable, "-m", "rerun_cli", "rrd", "verify", str(path)],
+        capture_output=True,
+        text=True,
+        timeout=900,
     )
     assert done.returncode == 0, done.stdout + done.stderr

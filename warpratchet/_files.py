@@ -45,7 +45,15 @@ from ._h5 import (
     sync_h5,
     writer_marked,
 )
-from ._storage import SPACE_MARGIN, StorageError, ensure_space, storage_cause, storage_errors
+from ._storage import (
+    SPACE_MARGIN,
+    StorageError,
+    dataset_bytes,
+    ensure_space,
+    h5_bytes,
+    storage_cause,
+    storage_errors,
+)
 
 try:  # advisory locks; absent on Windows, where files are simply not locked
     import fcntl
@@ -71,6 +79,8 @@ __all__ = [
     "abandon_h5",
     "SPACE_MARGIN",
     "ensure_space",
+    "h5_bytes",
+    "dataset_bytes",
     "storage_cause",
 ]
 

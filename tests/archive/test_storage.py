@@ -49,7 +49,10 @@ def small_disk(tmp_path):
     mnt.mkdir()
     try:
         proc = subprocess.run(
-            ["mount", "-t", "tmpfs", "-o", "size=12m", "tmpfs", str(mnt)], capture_output=True, text=True
+            ["mount", "-t", "tmpfs", "-o", "size=12m", "tmpfs", str(mnt)],
+            capture_output=True,
+            text=True,
+            timeout=600,
         )
     except OSError as exc:
         pytest.skip(f"cannot mount a tmpfs here ({exc})")
@@ -67,7 +70,7 @@ def small_disk(tmp_path):
     try:
         yield mnt, fill
     finally:
-        subprocess.run(["umount", str(mnt)], capture_output=True)
+        subprocess.run(["umount", str(mnt)], capture_output=True, timeout=600)
 
 
 def test_disk_full_mid_run_then_resumed(small_disk):
@@ -133,7 +136,7 @@ def test_disk_full_during_a_sweep(small_disk):
 
 def test_read_only_folder(small_disk):
     mnt, _ = small_disk
-    subprocess.run(["mount", "-o", "remount,ro", str(mnt)], check=True)
+    subprocess.run(["mount", "-o", "remount,ro", str(mnt)], check=True, timeout=600)
     proc = cli(*RUN, "--steps", "200", "--out", str(mnt / "run.h5"))
     assert proc.returncode == 1, proc.stderr
     line = proc.stderr.strip()

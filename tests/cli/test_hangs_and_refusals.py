@@ -117,6 +117,36 @@ def test_long_lets_a_long_request_through():
     )
 
 
+def test_a_resume_that_cannot_end_is_refused_with_its_estimate(tmp_path, capsys):
+    from warpratchet.cli import main
+
+    out = tmp_path / "r.h5"
+    assert main(run_argv("--points", "10", "--steps", "100", "--quiet", "--out", str(out))) == 0
+    before = out.read_bytes()
+    capsys.readouterr()
+    line = refused(capsys, ["resume", str(out), "--steps", str(2**62), "--quiet"])
+    assert f"10 points x {2**62 - 100} more steps would take at least" in line and "years" in line
+    assert line.rstrip().endswith("pass --long to run it")
+    assert out.read_bytes() == before  # refused before the archive is rebuilt
+    # --long is resume's flag too (here on a resume that is complete already).
+    assert main(["resume", str(out), "--steps", "100", "--quiet", "--long"]) == 0
+
+
+def test_a_sweep_that_cannot_end_is_refused_with_its_estimate(tmp_path, capsys):
+    from warpratchet.cli import main
+
+    out = tmp_path / "s.h5"
+    sweep = ["sweep", "--path", "maximal", "--b2", "0.01:0.1:3", "--points", "10", "--quiet"]
+    line = refused(capsys, [*sweep, "--steps", str(2**62), "--out", str(out)])
+    assert f"3 sweep points x 10 points x {2**62} steps would take at least" in line and "years" in line
+    assert line.rstrip().endswith("pass --long to run it")
+    assert not out.exists()
+    # Every sweep point counts: 3 x 10**6 points x 10**9 steps on 2 threads, 1.74 days at the fastest.
+    big = ["sweep", "--path", "maximal", "--b2", "0.01:0.1:3", "--points", str(10**6), "--threads", "2"]
+    assert "would take at least 1.74 days" in refused(capsys, [*big, "--steps", str(10**9)])
+    assert main([*sweep, "--steps", "100", "--out", str(out), "--long"]) == 0  # --long is sweep's flag too
+
+
 @pytest.mark.parametrize(
     "function",
     [

@@ -331,7 +331,7 @@ def test_a_recording_on_a_read_only_mount(tmp_path):
     mnt.mkdir()
     try:
         proc = subprocess.run(
-            ["mount", "-t", "tmpfs", "-o", "size=1m,ro", "tmpfs", str(mnt)], capture_output=True
+            ["mount", "-t", "tmpfs", "-o", "size=1m,ro", "tmpfs", str(mnt)], capture_output=True, timeout=600
         )
     except OSError as exc:
         pytest.skip(f"cannot mount a tmpfs here ({exc})")
@@ -342,6 +342,6 @@ def test_a_recording_on_a_read_only_mount(tmp_path):
             "run", *MAP_FLAGS, "--points", "50", "--steps", "50", "--quiet", "--rerun", str(mnt / "x.rrd")
         )
     finally:
-        subprocess.run(["umount", str(mnt)], capture_output=True)
+        subprocess.run(["umount", str(mnt)], capture_output=True, timeout=600)
     assert done.returncode == 1, done.stderr
     assert done.stderr == f"warpratchet: error: cannot write {mnt / 'x.rrd'}: read-only file system\n"

@@ -451,7 +451,7 @@ def test_the_c_of_a_force_gives_the_numpy_twins_kicks_bit_for_bit(tmp_path, tabl
     library = tmp_path / "kicks.so"
     command = [gcc, "-O2", "-ffp-contract=off", *flags, "-fPIC", "-shared", f"-I{tmp_path}"]
     done = subprocess.run(
-        [*command, "-o", str(library), str(tmp_path / "kicks.c")], capture_output=True, text=True
+        [*command, "-o", str(library), str(tmp_path / "kicks.c")], capture_output=True, text=True, timeout=900
     )
     assert done.returncode == 0, done.stderr
     if isa != "c" and not _cpu_has(flags[0][2:]):

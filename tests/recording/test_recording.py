@@ -357,7 +357,9 @@ def test_missing_rerun_is_a_clear_error(tmp_path, monkeypatch, capsys):
 def test_overhead_benchmark_quick_smoke():
     """``benchmarks/recording_overhead.py --quick --json`` runs and recording leaves results bitwise equal."""
     script = Path(__file__).resolve().parents[2] / "benchmarks" / "recording_overhead.py"
-    done = subprocess.run([sys.executable, str(script), "--quick", "--json"], capture_output=True, text=True)
+    done = subprocess.run(
+        [sys.executable, str(script), "--quick", "--json"], capture_output=True, text=True, timeout=900
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     report = json.loads(done.stdout)
     assert [(c["points"], c["steps"]) for c in report["cases"]] == [(10_000, 20_000), (200_000, 1_000)]

@@ -46,12 +46,12 @@ def test_ctrl_c_in_figures_prints_one_line_and_exits_130(tmp_path):
     proc = subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         deadline = time.monotonic() + 900
-        # The sweep file appears once the command has parsed its options and started the sweep.
-        while not (out / "sweeps" / "fig7.h5").exists():
-            assert proc.poll() is None, proc.communicate()
-            assert time.monotonic() < deadline, "the sweep never started"
+        sweep = out / "sweeps" / "fig7.h5"
+        # Readiness: the sweep file holds its first point, so the sweep's loop is running.
+        while not (sweep.exists() and read_sweep(sweep)):
+            assert proc.poll() is None, (argv, proc.communicate(timeout=900))
+            assert time.monotonic() < deadline, f"{argv}: no sweep point within 900 s"
             time.sleep(0.1)
-        time.sleep(1.0)
         proc.send_signal(signal.SIGINT)
         stdout, stderr = proc.communicate(timeout=900)
     finally:

@@ -33,7 +33,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .._files import claim
+from .._files import claim, h5_bytes
 from .._h5verify import first_line, read_everything, read_rows
 from ..ensemble import STATE_FIELDS, Ensemble
 from ..history import BLOCK_FIELDS, HISTORY_FIELDS, History
@@ -48,10 +48,13 @@ from ._features import (
 )
 from ._format import (
     COUNTERS,
+    FILL,
     FORMAT_VERSION,
+    ROW_CHUNK,
     SERIES_FIELDS,
     SLOTS,
     SNAPSHOT_FIELDS,
+    STATE_CHUNK,
     ArchiveError,
     ArchiveWarning,
     kernel_constants,
@@ -61,6 +64,7 @@ from ._rows import fill_rows, listed, nonfinite, read_counter, reading, slot_ste
 
 __all__ = [
     "Salvage",
+    "rebuilt_bytes",
     "salvage",
     "verify_archive",
 ]
@@ -262,6 +266,37 @@ def _check_history(arc: Archive, problems: list[str]) -> None:
                 problems.append(f"/history/{name} is not increasing")
     except (ArchiveError, KeyError, OSError, RuntimeError) as exc:
         problems.append(f"/history: damaged ({first_line(exc)})")
+
+
+def rebuilt_bytes(old: Salvage) -> int:
+    """Estimated file space of the data a rebuilt archive holds beside its layout.
+
+    The state arrays (initial, checkpoint, transport state) take chunks of ``STATE_CHUNK``
+    values, the rows whole chunks of ``ROW_CHUNK`` rows (one row per chunk where a row is an
+    array, as a snapshot's); :func:`~warpratchet._storage.h5_bytes` adds HDF5's share.
+    """
+    initial = old.layout["initial"]
+    states = [{k: v for k, v in initial.items() if np.any(v != FILL[k])}]  # a uniform field: no storage
+    if old.step != old.layout["initial_step"]:
+        states.append(old.state)
+        if old.transport_rows is not None:
+            carry = old.ensemble.transport_state()
+            states.append({**carry.carry, "counts": carry.counts})
+    rows = [old.series, old.transport_rows or {}]
+    rows.append({name: getattr(old.snapshots, name) for name in ("steps", *SNAPSHOT_FIELDS)})
+    if old.history is not None:
+        rows += [old.history.rows, old.history.block_rows]
+    total = sum(
+        h5_bytes(v.nbytes, -(-v.size // STATE_CHUNK)) for s in states for v in map(np.asarray, s.values())
+    )
+    for group in rows:
+        for v in map(np.asarray, group.values()):
+            if v.ndim > 1:  # one row per chunk
+                total += h5_bytes(v.nbytes, len(v))
+            else:  # whole chunks of ROW_CHUNK rows
+                chunks = -(-len(v) // ROW_CHUNK)
+                total += h5_bytes(chunks * ROW_CHUNK * v.itemsize, chunks)
+    return total
 
 
 # -- verify ---------------------------------------------------------------------------------------

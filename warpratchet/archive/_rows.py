@@ -40,7 +40,7 @@ import h5py
 import numpy as np
 from h5py import h5s
 
-from .._files import ensure_space, sync_h5
+from .._files import dataset_bytes, ensure_space, h5_bytes, sync_h5
 from .._h5verify import chunk_past_end, first_line, read_rows, refresh
 from ..ensemble import STATE_FIELDS
 from ..observables import finite_time_acceleration, lyapunov
@@ -195,12 +195,11 @@ class Rows:
         self.staged += 1
 
     def growth_bytes(self, rows: int = 1) -> int:
-        """Bytes of new chunks the next ``rows`` :meth:`put` calls allocate (HDF5 allocates a chunk at
-        its first write)."""
+        """File space of the new chunks the next ``rows`` :meth:`put` calls allocate (HDF5 allocates a
+        chunk at its first write; :func:`~warpratchet._storage.h5_bytes`)."""
         first = self.count + self.staged
         return sum(
-            ds.dtype.itemsize
-            * int(np.prod(ds.chunks))
+            h5_bytes(ds.dtype.itemsize * int(np.prod(ds.chunks)))
             * sum((first + k) % ds.chunks[0] == 0 for k in range(rows))
             for ds in self.datasets.values()
         )
@@ -327,7 +326,8 @@ def write_slot(
     """
     slot = f["checkpoint"][SLOTS[free]]
     if slot["x"].id.get_num_chunks() == 0:  # the slot's first use allocates its space
-        ensure_space(path, sum(v.nbytes for v in state.values()) + extra_bytes, "the checkpoint")
+        needed = sum(dataset_bytes(slot[name]) for name in STATE_FIELDS) + h5_bytes(extra_bytes)
+        ensure_space(path, needed, "the checkpoint")
     set_counter(slot["step"], -1)  # in progress: neither a reader nor a recovery may trust it
     f.flush()
     for name in STATE_FIELDS:

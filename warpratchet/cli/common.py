@@ -38,6 +38,8 @@ __all__ = [
     "spec_flag",
     "spec_flags",
     "spec_from_args",
+    "add_long_flag",
+    "check_duration",
     "print_warnings",
 ]
 
@@ -278,3 +280,44 @@ def print_warnings(caught: Iterable[Any]) -> None:
     """Warnings caught while reading a file, one line each on stderr."""
     for w in caught:
         print(f"warpratchet: warning: {w.message}", file=sys.stderr)
+
+
+#: Upper bounds of the kernels' speed in point-steps per second (about 8x what a CPU thread and
+#: 10x what a large GPU reach): an estimate at these speeds is a lower bound of the run time.
+FASTEST_CPU_THREAD, FASTEST_GPU = 1e10, 1e12
+#: Estimated seconds (at the fastest speeds) above which ``--long`` is required: a day.
+LONG_SECONDS = 86400.0
+
+
+def add_long_flag(parser: Any) -> None:
+    """``--long``: let through a request :func:`check_duration` refuses."""
+    parser.add_argument(
+        "--long",
+        action="store_true",
+        help=f"run a request estimated to take over {LONG_SECONDS / 3600:.0f} h even at the kernels' "
+        "fastest speed",
+    )
+
+
+def check_duration(
+    args: argparse.Namespace, what: str, point_steps: int, threads: int | None, device: str | None
+) -> None:
+    """UsageError with the estimate for a request that cannot end within a day (unless ``--long``).
+
+    ``point_steps`` (``what``, e.g. ``"10 points x 2000 steps"``) at :data:`FASTEST_CPU_THREAD`
+    per thread, or :data:`FASTEST_GPU` on a GPU ``device``: a lower bound of the time it takes.
+    """
+    from ..runloop import default_threads
+
+    if args.long:
+        return
+    on_gpu = device is not None and not str(device).startswith("cpu")
+    speed = FASTEST_GPU if on_gpu else FASTEST_CPU_THREAD * (threads or default_threads())
+    seconds = point_steps / speed
+    if seconds > LONG_SECONDS:
+        days = seconds / 86400
+        when = f"{days:.3g} days" if days < 3650 else f"{days / 365.25:.3g} years"
+        raise UsageError(
+            f"{what} would take at least {when} (at {speed:.3g} point-steps/s, faster than the "
+            "kernels run); pass --long to run it"
+        )

@@ -12,7 +12,16 @@ import time
 import warnings
 
 from ..spec import LEGACY_NAMES
-from .common import ProgressBar, UsageError, print_warnings, spec_flag, spec_flags, stopping
+from .common import (
+    ProgressBar,
+    UsageError,
+    add_long_flag,
+    check_duration,
+    print_warnings,
+    spec_flag,
+    spec_flags,
+    stopping,
+)
 from .report import history_report, print_report, run_report
 
 #: Settings that may be given to check them against the archive.
@@ -37,6 +46,7 @@ def add(sub) -> None:
     spec_flags(p, ("threads", "device"))
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_long_flag(p)
 
 
 def _archived(arc) -> dict:
@@ -91,6 +101,9 @@ def command(args: argparse.Namespace) -> int:
             )
         if args.steps == start_step:  # done already (the same resume again): report, touch nothing
             return _report_complete(args, caught)
+        more = args.steps - start_step
+        what = f"{archived['points']} points x {more} more steps"
+        check_duration(args, what, archived["points"] * more, args.threads, args.device)
         sink, ensemble = ArchiveSink.resume(args.archive, threads=args.threads, device=args.device)
     print_warnings(caught)
     sink.how_to_continue = "run the same command again to resume it"

@@ -16,7 +16,15 @@ import time
 from typing import Any
 
 from ..spec import RunSpec
-from .common import ProgressBar, UsageError, print_warnings, spec_flags, spec_from_args, stopping
+from .common import (
+    ProgressBar,
+    add_long_flag,
+    check_duration,
+    print_warnings,
+    spec_flags,
+    spec_from_args,
+    stopping,
+)
 from .report import history_report, print_report, run_report
 from .sharded import add_cluster_flags, check_cluster_flags
 from .sinks import add_archive_flags, add_rerun_flags, archive_plan, rerun_sink
@@ -26,24 +34,12 @@ from .sinks import add_archive_flags, add_rerun_flags, archive_plan, rerun_sink
 RUN_SETTINGS = tuple(f.name for f in dataclasses.fields(RunSpec) if f.name != "indicator")
 
 
-#: Upper bounds of the kernels' speed in point-steps per second (about 8x what a CPU thread and
-#: 10x what a large GPU reach): an estimate at these speeds is a lower bound of the run time.
-FASTEST_CPU_THREAD, FASTEST_GPU = 1e10, 1e12
-#: Estimated seconds (at the fastest speeds) above which ``--long`` is required: a day.
-LONG_SECONDS = 86400.0
-
-
 def add(sub) -> None:
     p = sub.add_parser("run", help="iterate an ensemble and report A and the Lyapunov exponent")
     spec_flags(p, RUN_SETTINGS)
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
-    p.add_argument(
-        "--long",
-        action="store_true",
-        help=f"run a request estimated to take over {LONG_SECONDS / 3600:.0f} h even at the kernels' "
-        "fastest speed",
-    )
+    add_long_flag(p)
     p.add_argument(
         "--transport",
         action="store_true",
@@ -106,23 +102,9 @@ def _sample(args: argparse.Namespace, spec: RunSpec):
 
 
 def _check_duration(args: argparse.Namespace, spec: RunSpec) -> None:
-    """UsageError with the estimate for a request that cannot end within a day (unless ``--long``):
-    ``points x steps`` point-steps at :data:`FASTEST_CPU_THREAD` per thread (or :data:`FASTEST_GPU`),
-    a lower bound of the time it takes."""
-    from ..runloop import default_threads
-
-    if args.long:
-        return
-    on_gpu = spec.device is not None and not str(spec.device).startswith("cpu")
-    speed = FASTEST_GPU if on_gpu else FASTEST_CPU_THREAD * (spec.threads or default_threads())
-    seconds = spec.points * spec.steps / speed
-    if seconds > LONG_SECONDS:
-        days = seconds / 86400
-        when = f"{days:.3g} days" if days < 3650 else f"{days / 365.25:.3g} years"
-        raise UsageError(
-            f"{spec.points} points x {spec.steps} steps would take at least {when} (at "
-            f"{speed:.3g} point-steps/s, faster than the kernels run); pass --long to run it"
-        )
+    """UsageError for a run that cannot end within a day, unless ``--long`` (:func:`.check_duration`)."""
+    what = f"{spec.points} points x {spec.steps} steps"
+    check_duration(args, what, spec.points * spec.steps, spec.threads, spec.device)
 
 
 def command(args: argparse.Namespace) -> int:

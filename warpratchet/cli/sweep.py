@@ -14,7 +14,16 @@ import math
 from ..errors import ParameterError, check_count
 from ..observables import MIN_CHAOTIC_POINTS
 from ..spec import params_of
-from .common import Interrupted, UsageError, emit_json, spec_flag, spec_flags, spec_from_args
+from .common import (
+    Interrupted,
+    UsageError,
+    add_long_flag,
+    check_duration,
+    emit_json,
+    spec_flag,
+    spec_flags,
+    spec_from_args,
+)
 
 #: What each kind of sweep reads besides --K: the flags it needs (any other is an error).
 _SWEEP_NEEDS = {
@@ -78,6 +87,7 @@ def add(sub) -> None:
     spec_flag(p, "threads", help="CPU threads per point (default: every core here; 1 per Dask worker thread)")
     p.add_argument("--json", action="store_true", help='print {"rows": [...]} on stdout')
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_long_flag(p)
 
 
 def _parse_range(flag: str, text: str) -> list[float]:
@@ -208,6 +218,9 @@ def command(args: argparse.Namespace) -> int:
         raise UsageError("--force needs --out FILE (it replaces that file)")
     points = _sweep_points(args)
     spec = spec_from_args(args, sweep.SweepSpec)
+    if args.scheduler is None:  # here, one point after another (a cluster's size is not known)
+        what = f"{len(points)} sweep points x {spec.points} points x {spec.steps} steps"
+        check_duration(args, what, len(points) * spec.points * spec.steps, args.threads, None)
     computed = []
     try:
         rows = sweep.run_sweep(

@@ -40,6 +40,7 @@ from .._files import (
     check_new_path,
     claim,
     ensure_space,
+    h5_bytes,
     publish,
     storage_cause,
     storage_errors,
@@ -62,6 +63,11 @@ except ImportError:  # pragma: no cover
     fcntl = None
 
 __all__ = ["SweepFile", "FORMAT", "FORMAT_VERSION", "ROW_FIELDS", "read_sweep", "read_definition"]
+
+#: File space of a sweep file's layout before any data (attributes, three datasets):
+#: ``scripts/h5_overhead.py`` measures 4559 B for 12 points and no records, and 1873 B of chunk
+#: index that the first block of records adds.
+LAYOUT_BYTES = 8 * 1024
 
 
 def _version() -> str:
@@ -195,8 +201,11 @@ class SweepFile:
         """Write the layout with the rows so far beside the path, publish it, keep it open (SWMR)."""
         count = len(self._rows)
         with storage_errors(self.path, "create" if not replace else "write", self._hint()):
-            # The layout is a few kB, each block of 64 records 10 kB: ask for room before HDF5 writes.
-            ensure_space(self.path, 65536 + ROW_DTYPE.itemsize * (count + 64), "the sweep file")
+            # The whole sweep's file: its layout, the parameters and every record (chunks of 64).
+            blocks = -(-max(count, len(self.params), 1) // 64)
+            needed = LAYOUT_BYTES + h5_bytes(self.params.nbytes, -(-len(self.params) // 4096))
+            needed += h5_bytes(ROW_DTYPE.itemsize * 64 * blocks, blocks)
+            ensure_space(self.path, needed, "the sweep file")
             with temporary_beside(self.path) as tmp:
                 f = h5py.File(tmp, "w", libver=LIBVER, locking=False)
                 try:
@@ -236,7 +245,7 @@ class SweepFile:
                 rows, valid = f["rows"], f["rows_valid"]
                 n = self._count
                 if n % 64 == 0:  # the first record of a new chunk allocates it
-                    ensure_space(self.path, 64 * ROW_DTYPE.itemsize, "the next rows")
+                    ensure_space(self.path, h5_bytes(64 * ROW_DTYPE.itemsize), "the next rows")
                 # A record past rows_valid is the remnant of an interrupted write: overwrite it.
                 if rows.shape[0] < n + 1:
                     rows.resize((n + 1,))
