@@ -79,7 +79,10 @@ def test_the_same_command_again_resumes(tmp_path):
     assert os.path.getsize(out) == before
 
 
-def test_an_archive_of_another_run_is_refused(tmp_path):
+def test_an_archive_of_another_run_is_refused(tmp_path, capsys):
+    """The refusals run in this process (``main``), the run and its ``--force`` in fresh ones."""
+    from warpratchet.cli import main
+
     out = tmp_path / "run.h5"
     small = ["run", *MAP_FLAGS, "--points", "100", "--steps", "300", "--quiet", "--out", str(out)]
     assert cli(*small).returncode == 0
@@ -89,12 +92,12 @@ def test_an_archive_of_another_run_is_refused(tmp_path):
         (["--snapshot-every", "100"], "(snapshot_every is 0 in the file, 100 requested)"),
         (["--threshold", "0.2"], "(threshold is None in the file, 0.2 requested)"),
     ]:
-        proc = cli(*small, *flags)
-        assert proc.returncode == 2 and message in proc.stderr and "--force" in proc.stderr, proc.stderr
-        assert len(proc.stderr.strip().splitlines()) == 1
+        code, stderr = main([*small, *flags]), capsys.readouterr().err
+        assert code == 2 and message in stderr and "--force" in stderr, stderr
+        assert len(stderr.strip().splitlines()) == 1
     shorter = ["run", *MAP_FLAGS, "--points", "100", "--steps", "200", "--quiet", "--out", str(out)]
-    proc = cli(*shorter)
-    assert proc.returncode == 2 and "already at step 300, beyond --steps 200" in proc.stderr
+    code, stderr = main(shorter), capsys.readouterr().err
+    assert code == 2 and "already at step 300, beyond --steps 200" in stderr
     assert out.read_bytes() == before
     assert cli(*small, "--seed", "4", "--force").returncode == 0  # --force replaces it
 
