@@ -29,6 +29,7 @@ Usage::
     python benchmarks/transport_overhead.py --json     # one JSON object on stdout
     python benchmarks/transport_overhead.py --quick    # 20 000 points x 500 steps, one repetition
     python benchmarks/transport_overhead.py --kernel --steps 333   # the kernels alone, 1 thread
+    python benchmarks/transport_overhead.py --kernel --block-rows 1  # the decoder's row loop alone
 
 ``--kernel``: the two kernels alone, one launch of ``steps`` per timing on the same arrays (no
 ensemble, no spread rows, no chunking), one thread, CPU time, best of ``--repeat`` (default 5).
@@ -106,8 +107,9 @@ def measure(points: int, steps: int, threads: int, repeat: int) -> dict:
     }
 
 
-def measure_kernels(points: int, steps: int, repeat: int) -> dict:
-    """Best CPU seconds of one launch of ``steps`` per kernel on the same arrays, alternating."""
+def measure_kernels(points: int, steps: int, repeat: int, block_rows: int = 8) -> dict:
+    """Best CPU seconds of one launch of ``steps`` per kernel on the same arrays, alternating
+    (``block_rows``: the transport decoder's 8-row blocks, or 1 for its row loop alone)."""
     import warp as wp
 
     from warpratchet import kernels
@@ -131,12 +133,12 @@ def measure_kernels(points: int, steps: int, repeat: int) -> dict:
     advance_map_transport.load("cpu")
     seconds: dict[str, list[float]] = {"plain": [], "transport": []}
     for _ in range(repeat):
-        for name, kernel, state_arrays, extra_arrays in (
-            ("plain", kernels.advance_map, plain, []),
-            ("transport", advance_map_transport, transport, extra),
+        for name, kernel, state_arrays, extra_arrays, options in (
+            ("plain", kernels.advance_map, plain, [], {}),
+            ("transport", advance_map_transport, transport, extra, {"block_rows": block_rows}),
         ):
             begin = time.thread_time()
-            kernel.launch("cpu", state_arrays, extra_arrays, step0, steps, PARAMS)
+            kernel.launch("cpu", state_arrays, extra_arrays, step0, steps, PARAMS, **options)
             seconds[name].append(time.thread_time() - begin)
         step0 += steps
     best = {name: min(values) for name, values in seconds.items()}
@@ -163,9 +165,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="20 000 points x 500 steps, once")
     parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
     parser.add_argument("--kernel", action="store_true", help="the kernels alone: one launch each, 1 thread")
+    parser.add_argument(
+        "--block-rows",
+        type=int,
+        choices=(1, 8),
+        default=8,
+        help="--kernel: the CPU transport decoder's blocks of 8 rows, or 1 (its row loop alone)",
+    )
     args = parser.parse_args(argv)
     if args.kernel:
-        r = measure_kernels(args.points or 1_000_000, args.steps or 1000, args.repeat or 5)
+        r = measure_kernels(args.points or 1_000_000, args.steps or 1000, args.repeat or 5, args.block_rows)
         if args.json:
             print(json.dumps({"target_ratio": TARGET, "kernel": r}))
         else:

@@ -68,7 +68,7 @@ def test_both_step_bodies_count_exactly_what_the_numpy_twin_counts(p):
     carry = twin.initial_carry(p, state["x"], 5)
     expected_state, expected_carry, expected = twin.advance(p, state, carry, 1500, step0=5)
     assert expected.sum() > 1000  # events happened
-    # block_rows=1: every row through the row loop, the path of a CPU without GFNI
+    # block_rows=1: every row through the row loop, the path of an AVX-512 CPU without GFNI
     runs = [("cpu", [1500], 8), ("cpu", [3, 97, 1, 8, 600, 791], 8), ("cpu", [1500], 1)]
     runs += [("cpu", [3, 97, 1, 8, 600, 791], 1), ("portable", [700, 800], 8)]
     for body, pieces, block_rows in runs:

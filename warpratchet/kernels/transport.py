@@ -250,8 +250,8 @@ class _TransportKernel(AdvanceKernel):
     ) -> None:
         """:meth:`AdvanceKernel.launch` with ``extra`` = the carry arrays and the launch's histogram
         array (:data:`CARRY_FIELDS`, then ``(3 * BINS,)`` int64, added to). ``block_rows``: the CPU
-        hooks' largest block of rows decoded at once: 8, or 1 (row by row, the path of a CPU
-        without GFNI; the same counts, both paths checked by ``tests/analyses/test_transport.py``).
+        hooks' largest block of rows decoded at once: 8, or 1 (row by row, the path of an AVX-512
+        CPU without GFNI; the same counts, both paths checked by ``tests/analyses/test_transport.py``).
         ``scratch``: the CPU hooks' scratch array (default: one of this launch's own; a test gives
         two concurrent launches one scratch to check that the guard sees it).
 

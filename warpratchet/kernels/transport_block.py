@@ -1,11 +1,14 @@
-"""The transport CPU hooks' block decoding: 8 buffered rows at once, where the CPU has AVX-512 and GFNI.
+"""The transport CPU hooks' block decoding: 8 buffered rows at once, as bit planes.
 
 A C++ snippet, :data:`BLOCK_CPU`, inserted into :data:`~.transport_cpu.DECODE_CPU` before its row
 by row loop (it uses that snippet's trackers, tallies and helpers): each full block of 8 rows is
 transposed into bit planes (one byte per lane, bit i = row i), and its visits to B and gain
-changes are found with bit tricks on the planes. Without AVX-512 and GFNI it compiles to nothing
-and every row goes through the loop; a launch with ``block_rows=1`` takes that path on any CPU,
-so the tests check both against the NumPy twin, count for count (``tests/analyses/test_transport.py``).
+changes are found with bit tricks on the planes. On the AVX2 path (16 lanes, rows as coded bytes)
+:data:`BLOCK_CODED_CPU` does the same from planes built with byte masks, popcounts and bit
+reversals as nibble table lookups; on an AVX-512 CPU without GFNI the block compiles to nothing
+and every row goes through the loop. A launch with ``block_rows=1`` takes the row loop alone on
+any CPU, so the tests check both against the NumPy twin, count for count
+(``tests/analyses/test_transport.py``).
 
 Why 8 rows, not 16 (measured, 10^6 points at K = 3, 1 thread, launches of 200 steps, one process,
 the block size chosen per launch): 16-row blocks (two 8-row transposes interleaved into 16 bits a
@@ -25,7 +28,7 @@ boundary (5 instructions fewer a block: 215 -> 210; the scratch guard's check at
 makes it 211).
 """
 
-__all__ = ["BLOCK_CPU"]
+__all__ = ["BLOCK_CPU", "BLOCK_CODED_CPU"]
 
 
 def _indices(values) -> str:
@@ -157,12 +160,66 @@ for (; block_rows >= 8 && r0 + 8 <= rows; r0 += 8) {
     t[8] += n_up;
     /* rows from the last boundary: ctz8 of the reversed block, from its lowest bit found above */
     flen = ends ? popcount8(last_reversed - one) + one : flen + eight;
-    u8v last_row;
+"""
+# the gain code of the block's last row, from the rows' top bytes (AVX-512) or the planes (AVX2)
+_LAST_TOP = """    u8v last_row;
     __builtin_memcpy(&last_row, buffer + (r0 + 7) * N, N);
     fcode = gain_code(last_row);
+}
+"""
+_LAST_PLANES = """    fcode = (G0 >> 7) | ((G1 >> 7) << 1) | ((G2 >> 7) << 2);
 }
 """
 
 #: The block decoding (module docstring), for 32 lanes: blocks of 8 rows where the CPU has AVX-512
 #: with GFNI and ``block_rows`` (a C++ int of the decoder, 8 or 1) is 8; the row loop takes the rest.
-BLOCK_CPU = "#if defined(__GFNI__) && defined(__AVX512BW__)\n" + _PLANES8 + _BYTE_BITS + _BLOCK8 + "#endif\n"
+BLOCK_CPU = (
+    "#if defined(__GFNI__) && defined(__AVX512BW__)\n"
+    + _PLANES8
+    + _BYTE_BITS
+    + _BLOCK8
+    + _LAST_TOP
+    + "#endif\n"
+)
+
+#: The bit planes of 8 coded rows of 16 lanes (the AVX2 path's rows, ``gain + 8 in_strip``), two
+#: rows a 256-bit vector: each row's gain code bits (|gain| = 1, |gain| = 2, gain < 0) and its
+#: visit to B as byte masks, and-ed with the row's bit and or-ed into the planes.
+_PLANES16 = f"""
+typedef signed char s8x32 __attribute__((ext_vector_type(32)));
+typedef unsigned char u8x32 __attribute__((ext_vector_type(32)));
+auto planes8 = [&](const int r, u8v* out) {{
+    u8x32 p0 = 0, p1 = 0, p2 = 0, pi = 0;
+    for (int j = 0; j < 4; j++) {{
+        s8x32 b;
+        __builtin_memcpy(&b, buffer + (r + 2 * j) * N, 32);
+        const u8x32 in_b = (u8x32)(b > (s8x32)5);
+        const s8x32 g = b - (s8x32)(in_b & (u8x32)8);
+        const s8x32 a = __builtin_elementwise_abs(g);
+        /* row 2 j in the low half, row 2 j + 1 in the high half */
+        const u8x32 bit = __builtin_shufflevector((u8v)(unsigned char)(1 << (2 * j)),
+            (u8v)(unsigned char)(2 << (2 * j)), {_indices(range(32))});
+        p0 |= (u8x32)(a == (s8x32)1) & bit;
+        p1 |= (u8x32)(a == (s8x32)2) & bit;
+        p2 |= (u8x32)(g < (s8x32)0) & bit;
+        pi |= in_b & bit;
+    }}
+    const u8x32 planes[4] = {{p0, p1, p2, pi}};
+    for (int k = 0; k < 4; k++)
+        out[k] = __builtin_shufflevector(planes[k], planes[k], {_indices(range(16))})
+            | __builtin_shufflevector(planes[k], planes[k], {_indices(range(16, 32))});
+}};
+"""
+
+#: Bit tricks on the bytes of a lane vector without GFNI (popcount and bit reversal as the
+#: compiler lowers them on AVX2: nibble table lookups).
+_BYTE_BITS16 = """
+auto popcount8 = [](u8v v) { return __builtin_elementwise_popcount(v); };
+auto reverse8 = [](u8v v) { return __builtin_elementwise_bitreverse(v); };
+auto lowest8 = [](u8v v) { return v & (u8v)(0 - v); };
+auto ctz8 = [&](u8v v) { return popcount8(lowest8(v) - (u8v)1); };
+"""
+
+#: The block decoding of the AVX2 path's coded rows (16 lanes): the same bit tricks as
+#: :data:`BLOCK_CPU` on planes built from the coded bytes.
+BLOCK_CODED_CPU = _PLANES16 + _BYTE_BITS16 + _BLOCK8 + _LAST_PLANES

@@ -13,13 +13,13 @@ state (the registers spill). So the CPU hooks split the work:
   bytes, ``_GAIN_CODES``) with the trackers as byte vectors (all lanes of a row at once), each
   row's events counted by lengths ``< 2``, ``< 4``, ``< 8`` with a popcount of the event mask;
   the rare events of length 8 or more go to the launch's histogram array one by one. Where the
-  CPU has AVX-512 and GFNI, each full block of 8 rows is decoded at once instead
-  (:mod:`.transport_block`).
+  CPU has AVX-512 and GFNI, and on the AVX2 path, each full block of 8 rows is decoded at once
+  instead (:mod:`.transport_block`).
 
 On the AVX2 path (16 lanes in 16 registers) a hook after each step spills the lanes around it, so
 there the steps between two checks run in one call with the recording inside the loop
-(:data:`RECORD_CPU`: a row is one byte per lane, ``gain + 8 in_strip``), and the rows are decoded
-with the events as byte masks (``_ROWS_AVX2``); the counts are the same.
+(:data:`RECORD_CPU`: a row is one byte per lane, ``gain + 8 in_strip``), and the rows past the
+last full block are decoded with the events as byte masks (``_ROWS_AVX2``); the counts are the same.
 
 Trackers: ``age`` (steps since the last visit to B), ``flen`` (steps of the run in progress) are
 bytes kept at most :data:`CAP` after each block, the excess carried exactly in int64 (``*_extra``);
@@ -36,7 +36,7 @@ scratch (its owner and conflict words) turns threads that share it at once into 
 """
 
 from .step import INTERLEAVE
-from .transport_block import BLOCK_CPU
+from .transport_block import BLOCK_CODED_CPU, BLOCK_CPU
 
 __all__ = [
     "BINS",
@@ -363,8 +363,7 @@ auto gain_code = [](u8v top) {{ return (top & (u8v)1) | ((top >> 5) & (u8v)6); }
 (void)gain_code;
 """
     + f"int r0 = 0;\nconst int block_rows = acc.arrays.scratch.shape[0] == {SCRATCH_BYTES} ? 8 : 1;\n"
-    + BLOCK_CPU
-    + (_ROWS_AVX2 if _CODED_ROWS else _ROWS)
+    + (BLOCK_CODED_CPU + _ROWS_AVX2 if _CODED_ROWS else BLOCK_CPU + _ROWS)
     + f"""/* bytes stay at most CAP: the excess moves to the int64 parts (exact) */
 const u8v cap = {CAP};
 const mask_t long_age = __builtin_bit_cast(mask_t, __builtin_convertvector(age > cap, bv));
