@@ -169,6 +169,53 @@ def _store(state: State, s: Lanes, first: int, spacing: int, n: int):
             state.winding[i] = state.winding[i] + wp.int64(s.w[k])
 
 
+# The CPU body's load and store: a thread's lanes are one contiguous block of points
+# (:func:`_blocks`), copied whole where the block lies inside contiguous arrays; the per-lane
+# loops above (the same values) take the last, partial block and strided views.
+_CPU_FIELDS = ("x", "q", "dx", "dp", "log_stretch")
+
+
+def _whole_block_source(copy: str, then: str = "") -> str:
+    """C++ of a whole-block copy: ``copy`` formatted per field, ``then`` after; returns whether
+    the block was whole (else nothing is copied)."""
+    checks = "".join(f"whole = whole && state.{f}.strides[0] == sizeof(double);\n" for f in _CPU_FIELDS)
+    copies = "".join("    " + copy.format(f=f) + "\n" for f in _CPU_FIELDS)
+    return (
+        f"bool whole = first + {INTERLEAVE} <= n;\n{checks}"
+        f"if (!whole) return false;\n{copies}{then}return true;\n"
+    )
+
+
+@wp.func_native(_whole_block_source("__builtin_memcpy(&s.{f}, state.{f}.data + first, sizeof(s.{f}));"))
+def _load_whole_cpu(state: State, s: wp.ref[Lanes], first: int, n: int) -> bool: ...
+
+
+@wp.func_native(
+    "if (state.winding.strides[0] != sizeof(wp::int64)) return false;\n"
+    + _whole_block_source(
+        "__builtin_memcpy(state.{f}.data + first, &s.{f}, sizeof(s.{f}));",
+        f"for (int k = 0; k < {INTERLEAVE}; ++k) state.winding.data[first + k] += (wp::int64)s.w.c[k];\n",
+    )
+)
+def _store_whole_cpu(state: State, s: wp.ref[Lanes], first: int, n: int) -> bool: ...
+
+
+@wp.func
+def _load_cpu(state: State, first: int, spacing: int, n: int):
+    """:func:`_load`'s lanes, a whole block in one copy per field."""
+    s = Lanes()
+    if not _load_whole_cpu(state, s, first, n):
+        s = _load(state, first, spacing, n)
+    return s
+
+
+@wp.func
+def _store_cpu(state: State, s: Lanes, first: int, spacing: int, n: int):
+    """:func:`_store`, a whole block in one copy per field."""
+    if not _store_whole_cpu(state, s, first, n):
+        _store(state, s, first, spacing, n)
+
+
 @wp.func
 def _blocks(tid: int, n: int):
     """CPU layout: thread ``tid`` holds points ``tid*INTERLEAVE + k``, one contiguous block."""
@@ -466,7 +513,7 @@ def _portable_body(force: Force, tag: str) -> Body:
 
 def _cpu_body(force: Force, tag: str) -> Body:
     step, steps = _cpu_steps(force, tag)
-    return Body("cpu", _blocks, _load, _store, step, _renorm_cpu, steps, force=force)
+    return Body("cpu", _blocks, _load_cpu, _store_cpu, step, _renorm_cpu, steps, force=force)
 
 
 def force_bodies(force: Force) -> tuple[Body, Body]:
