@@ -48,19 +48,9 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .._files import (
-    abandon_h5,
-    check_new_path,
-    claim,
-    ensure_space,
-    h5_bytes,
-    publish,
-    storage_errors,
-    sync_h5,
-    temporary_beside,
-    try_lock,
-)
+from .._files import abandon_h5, check_new_path, claim, publish, sync_h5, temporary_beside, try_lock
 from .._h5 import create_h5
+from .._storage import ensure_space, h5_bytes, storage_errors
 from ..ensemble import STATE_FIELDS, Ensemble, Observer
 from ..errors import check_count, check_optional, check_real
 from ..history import History

@@ -33,21 +33,8 @@ from typing import Any
 import h5py
 import numpy as np
 
-from .._files import (
-    LIBVER,
-    StorageError,
-    abandon_h5,
-    check_new_path,
-    claim,
-    ensure_space,
-    h5_bytes,
-    publish,
-    storage_cause,
-    storage_errors,
-    sync_h5,
-    temporary_beside,
-    try_lock,
-)
+from .._files import LIBVER, abandon_h5, check_new_path, claim, publish, sync_h5, temporary_beside, try_lock
+from .._storage import StorageError, ensure_space, h5_bytes, storage_cause, storage_errors
 from ..errors import FileFormatError
 from ..spec import SweepSpec, attr_value
 from . import records
