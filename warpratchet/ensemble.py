@@ -42,6 +42,7 @@ from .observables import (
     SUMMARY_CHUNK,
     TREE_LEAF,
     Summary,
+    lyapunov_threshold,
     summarize,
     summarize_with_variance,
 )
@@ -413,9 +414,11 @@ class Ensemble:
         """:func:`~warpratchet.observables.summarize_with_variance` of the current state on this
         ensemble's threads (the variance kept for :meth:`known_variance`), or None to leave the
         summary to ``summarize``: a GPU, more points than one summary chunk, a value not finite."""
-        if self.points > SUMMARY_CHUNK or not wp.get_device(self.device).is_cpu:
+        if self.points > SUMMARY_CHUNK or not wp.get_device(self.device).is_cpu or self.step < 1:
             return None
-        args = (self.views(), self.step, threshold, threshold_rule, ftle)
+        if threshold is None:
+            threshold = lyapunov_threshold(self.step, threshold_rule)
+        args = (self.views(), self.step, threshold, ftle)
         if self.threads < 2 or self.points < 4 * TREE_LEAF:  # a few leaves: not worth the threads
             done = summarize_with_variance(*args)
         else:

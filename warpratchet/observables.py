@@ -432,9 +432,9 @@ def _batched(pool: Any, jobs: list, batches: int) -> list:
 def summarize_with_variance(
     state: dict[str, np.ndarray],
     step: int,
-    threshold: float | None = None,
-    threshold_rule: str = "strict",
+    threshold: float,
     ftle: np.ndarray | None = None,
+    *,
     pool: Any = None,
     batches: int = 1,
 ) -> tuple[Summary, float] | None:
@@ -446,13 +446,12 @@ def summarize_with_variance(
     :func:`pairwise_tree` (cache-sized), the chaotic and ambiguous points' values gathered in
     order; each sum is then NumPy's pairwise sum rebuilt from its leaves' sums (:func:`tree_total`),
     so every number is that of :func:`summarize` and of the history's variance. ``batches``: how
-    many pieces each pass is cut into for the pool. Returns None where a value is not finite
+    many pieces each pass is cut into for the pool. ``threshold``: the FTLE threshold itself (a
+    rule's is :func:`lyapunov_threshold`). Returns None where a value is not finite
     (:func:`summarize` says which, in its error) or the state is larger than one chunk.
     """
     step = check_count("step", step, 1)
-    threshold = check_optional(check_real, "threshold", threshold, 0.0)
-    if threshold is None:
-        threshold = lyapunov_threshold(step, threshold_rule)
+    threshold = check_real("threshold", threshold, 0.0)
     n = len(state["log_stretch"])
     if n > SUMMARY_CHUNK or (ftle is not None and np.shape(ftle) != (n,)):
         return None

@@ -12,6 +12,7 @@ from warpratchet.observables import (
     AMBIGUITY_FACTOR,
     finite_time_acceleration,
     lyapunov,
+    lyapunov_threshold,
     mean_stderr,
     summarize,
 )
@@ -152,15 +153,17 @@ def test_the_summary_with_variance_on_threads_is_summarize_and_the_history_varia
         monkeypatch.setattr(observables, "TREE_LEAF", leaf)
     state = _state(points, steps, seed=points + steps)
     want, variance = _reference(state, steps, threshold, rule)
+    if threshold is None:
+        threshold = lyapunov_threshold(steps, rule)
     with ThreadPoolExecutor(threads) as pool:
         got, var = observables.summarize_with_variance(
-            state, steps, threshold, rule, pool=pool if threads > 1 else None, batches=4 * threads
+            state, steps, threshold, pool=pool if threads > 1 else None, batches=4 * threads
         )
     for name, value in want.as_dict().items():
         assert got.as_dict()[name] == value or _same_bits(got.as_dict()[name], value), name
     assert _same_bits(var, variance)
     ftle = lyapunov(state, steps)  # a caller's FTLE (a transport ensemble's) is taken as given
-    given = observables.summarize_with_variance(state, steps, threshold, rule, ftle=ftle)[0].as_dict()
+    given = observables.summarize_with_variance(state, steps, threshold, ftle=ftle)[0].as_dict()
     assert all(
         given[name] == value or _same_bits(given[name], value) for name, value in want.as_dict().items()
     )
@@ -169,8 +172,8 @@ def test_the_summary_with_variance_on_threads_is_summarize_and_the_history_varia
 def test_the_summary_with_variance_leaves_what_it_cannot_do_to_summarize():
     state = _state(300, 50, seed=1)
     state["dx"][7] = np.inf
-    assert observables.summarize_with_variance(state, 50) is None
+    assert observables.summarize_with_variance(state, 50, lyapunov_threshold(50)) is None
     with pytest.raises(ValueError, match="non-finite FTLE"):
         summarize(state, 50)
     big = {name: np.zeros(observables.SUMMARY_CHUNK + 1) for name in state}
-    assert observables.summarize_with_variance(big, 50) is None
+    assert observables.summarize_with_variance(big, 50, lyapunov_threshold(50)) is None
