@@ -61,13 +61,13 @@ def test_the_slopes_short_cuts_are_exercised():
 @pytest.mark.parametrize(
     ("knots", "values", "message"),
     [
-        ("0,0.3,0.6", "0,0.4,-0.4", "mean int_0^1 f dx = -0.02"),
-        ("0,0.6,0.3", "0,0.4,-0.4", "knots[2] = 0.3"),
-        ("0.1,0.3,0.6", "0,0.4,-0.4", "knots[0] = 0.1"),
-        ("0,0.5,1", "0,0.4,-0.4", "knots[2] = 1"),
-        ("0,0.5", "0,0.4,-0.4", "values has 3 entries"),
-        ("0,x", "0,0", "knots[1] = 'x'"),
-        ("0,0.25,0.5,0.75", "0,0.9,0,-0.9", "max |K f| = 2.7"),
+        pytest.param("0,0.3,0.6", "0,0.4,-0.4", "mean int_0^1 f dx = -0.02", id="mean-not-zero"),
+        pytest.param("0,0.6,0.3", "0,0.4,-0.4", "knots[2] = 0.3", id="knots-not-increasing"),
+        pytest.param("0.1,0.3,0.6", "0,0.4,-0.4", "knots[0] = 0.1", id="first-knot-not-0"),
+        pytest.param("0,0.5,1", "0,0.4,-0.4", "knots[2] = 1", id="knot-at-1"),
+        pytest.param("0,0.5", "0,0.4,-0.4", "values has 3 entries", id="lengths-differ"),
+        pytest.param("0,x", "0,0", "knots[1] = 'x'", id="not-a-number"),
+        pytest.param("0,0.25,0.5,0.75", "0,0.9,0,-0.9", "max |K f| = 2.7", id="kick-too-strong"),
     ],
 )
 def test_a_force_is_refused_in_one_line_naming_the_value(knots, values, message):
