@@ -8,11 +8,12 @@ to exit 0. Catching SIGINT here instead (Python's own handler, as in any interac
 children start with the default action again (exec resets caught signals, never ignored ones).
 
 Hypothesis runs without deadlines (the profile ``busy-machine``): no test depends on wall-clock
-timing.
+timing. Dask's loopback connections get minutes, not its default 30 s, for the same reason.
 """
 
 from __future__ import annotations
 
+import os
 import signal
 
 from hypothesis import settings
@@ -25,3 +26,9 @@ if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
 # that launch kernels set deadline=None themselves too.
 settings.register_profile("busy-machine", deadline=None)
 settings.load_profile("busy-machine")
+
+# A Dask client or worker that waits 30 s (the default) for a loopback reply fails a test when the
+# machine is loaded enough (scheduler-connection-lost at a load of 18 on 2 cores). Environment
+# variables reach dask in this process and in every process a test starts (workers, benchmarks).
+for _name in ("CONNECT", "TCP"):
+    os.environ.setdefault(f"DASK_DISTRIBUTED__COMM__TIMEOUTS__{_name}", "300s")
