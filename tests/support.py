@@ -214,15 +214,19 @@ def archive_rows(path) -> int:
         return 0
 
 
+def benchmark(name: str, *args: str, timeout: float = 900) -> subprocess.CompletedProcess:
+    """``benchmarks/NAME ARGS`` in a fresh process, run to its end, output captured as text."""
+    script = Path(__file__).resolve().parents[1] / "benchmarks" / name
+    return subprocess.run(
+        [sys.executable, str(script), *args], capture_output=True, text=True, timeout=timeout
+    )
+
+
 def quick_benchmark(name: str, timeout: float = 900) -> dict:
     """``benchmarks/NAME --quick --json`` in a fresh process: it must exit 0; its JSON report."""
     import json
-    from pathlib import Path
 
-    script = Path(__file__).resolve().parents[1] / "benchmarks" / name
-    proc = subprocess.run(
-        [sys.executable, str(script), "--quick", "--json"], capture_output=True, text=True, timeout=timeout
-    )
+    proc = benchmark(name, "--quick", "--json", timeout=timeout)
     assert proc.returncode == 0, proc.stderr
     return json.loads(proc.stdout)
 

@@ -20,16 +20,14 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from support import quick_benchmark
+from support import benchmark, quick_benchmark
 
 SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "throughput.py"
 QUICK_POINTS, QUICK_STEPS = 20_000, 1000
 
 
 def _run(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, str(SCRIPT), *args], capture_output=True, text=True, timeout=600, check=False
-    )
+    return benchmark(SCRIPT.name, *args, timeout=600)
 
 
 @pytest.fixture(scope="module")

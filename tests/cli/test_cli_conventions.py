@@ -96,7 +96,9 @@ def test_figures_without_matplotlib_is_one_clear_line(tmp_path, monkeypatch, cap
 def test_the_command_starts_without_importing_warp():
     """--help and --version answer without Warp (a fast start, and little for Ctrl-C to hit)."""
     code = "import sys; from warpratchet.cli import main; main(['--version']); print('warp' in sys.modules)"
-    done = __import__("subprocess").run([sys.executable, "-c", code], capture_output=True, text=True)
+    done = __import__("subprocess").run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=900
+    )
     assert done.stdout.splitlines()[-1] == "False", done.stderr
 
 

@@ -2,12 +2,10 @@
 
 import json
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
-from support import error_line
+from support import cli, error_line
 
 from warpratchet import theory
 from warpratchet.cli import main
@@ -32,12 +30,6 @@ RUN_KEYS = {
 THEORY_KEYS = {"K", "b1", "b2", "l1", "l2", "c", "domain", "S_L", "S_R", "S_C", "A"}
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "warpratchet.cli", *args], capture_output=True, text=True, timeout=900
-    )
-
-
 def test_theory_json(capsys):
     assert main(["theory", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
@@ -51,14 +43,14 @@ def test_theory_json(capsys):
 
 def test_acceptance_run_agrees_with_theory():
     """Issue acceptance: the documented command, in a subprocess, against `warpratchet theory`."""
-    run = _cli(
+    run = cli(
         "run", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--points", "10000", "--steps", "120000", "--json"
     )
     assert run.returncode == 0, run.stderr
     assert run.stderr == ""  # the progress bar is drawn only on a terminal
     report = json.loads(run.stdout)
     assert RUN_KEYS <= set(report)
-    th = json.loads(_cli("theory", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--json").stdout)
+    th = json.loads(cli("theory", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--json").stdout)
     # Strip ensemble (the paper's protocol): bias bound as in test_statistics' strip test.
     excluded = report["points"] - report["chaotic_points"]
     bias = 200 / report["steps"] + 2 * excluded / report["chaotic_points"]
@@ -85,7 +77,7 @@ def test_acceptance_run_agrees_with_theory():
     ],
 )
 def test_bad_input_exits_2_with_one_line_and_no_traceback(args, needle):
-    result = _cli(*args, "--quiet") if args[0] == "run" else _cli(*args)
+    result = cli(*args, "--quiet") if args[0] == "run" else cli(*args)
     assert result.returncode == 2, result.stderr
     line = error_line(result.stderr)  # after a short usage line if refused while parsing
     assert needle in line

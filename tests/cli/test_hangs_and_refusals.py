@@ -12,7 +12,7 @@ import sys
 import textwrap
 
 import pytest
-from support import error_line, refused, run_argv
+from support import cli, error_line, refused, run_argv
 
 from warpratchet import Ensemble, MapParams, theory
 from warpratchet.errors import ParameterError
@@ -25,12 +25,6 @@ PARAMS = MapParams(3.0, 0.1, 0.01)
 def _python(code: str, *args: str) -> subprocess.CompletedProcess:
     return subprocess.run(
         [sys.executable, "-c", textwrap.dedent(code), *args], capture_output=True, text=True, timeout=PATIENCE
-    )
-
-
-def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "warpratchet.cli", *args], capture_output=True, text=True, timeout=PATIENCE
     )
 
 
@@ -69,7 +63,7 @@ def test_a_fifo_is_refused_in_one_line_not_waited_on(tmp_path, command):
     fifo = tmp_path / "f.h5"
     os.mkfifo(fifo)
     name, *rest = command
-    proc = _cli(name, str(fifo), *rest)
+    proc = cli(name, str(fifo), *rest, timeout=PATIENCE)
     assert proc.returncode == 2, proc.stderr
     line = error_line(proc.stderr)
     assert str(fifo) in line and ("not a regular file" in line or "no such file" in line), line
@@ -184,9 +178,8 @@ def test_figures_refuse_a_file_as_the_sweeps_folder(tmp_path):
     pytest.importorskip("matplotlib")
     afile = tmp_path / "sweeps.txt"
     afile.write_text("not a folder")
-    proc = _cli(
-        "figures", "--only", "fig7", "--out", str(tmp_path / "figs"), "--sweeps", str(afile), "--quiet"
-    )
+    args = ["figures", "--only", "fig7", "--out", str(tmp_path / "figs"), "--sweeps", str(afile)]
+    proc = cli(*args, "--quiet", timeout=PATIENCE)
     assert proc.returncode == 2, proc.stderr
     assert f"--sweeps {afile}: exists and is not a directory" in error_line(proc.stderr)
     assert afile.read_text() == "not a folder" and not (tmp_path / "figs").exists()

@@ -8,12 +8,10 @@ from __future__ import annotations
 
 import json
 import signal
-import subprocess
-import sys
 import time
 
 import numpy as np
-from support import MAP_FLAGS, cli, same_history
+from support import MAP_FLAGS, cli, launch, same_history
 from support import documented_names as _documented_names
 from support import documented_optional as _documented_optional
 from support import written_names as _written_names
@@ -56,12 +54,7 @@ def _rows(path) -> int:
 
 def test_a_killed_run_resumed_equals_an_uninterrupted_one_bit_for_bit(tmp_path):
     whole, killed = str(tmp_path / "whole.h5"), str(tmp_path / "killed.h5")
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "warpratchet.cli", *RUN, "--out", killed],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    proc = launch(*RUN, "--out", killed)
     start = time.monotonic()
     while proc.poll() is None and _rows(killed) < 40 and time.monotonic() - start < 900:
         time.sleep(0.005)

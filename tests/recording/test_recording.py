@@ -9,14 +9,12 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 from rrd import cloud_frames, packed, read_rrd, series, verify
-from support import run_argv
+from support import quick_benchmark, run_argv
 
 from warpratchet import Ensemble, MapParams, theory
 from warpratchet.cli import main as cli_main
@@ -356,12 +354,7 @@ def test_missing_rerun_is_a_clear_error(tmp_path, monkeypatch, capsys):
 
 def test_overhead_benchmark_quick_smoke():
     """``benchmarks/recording_overhead.py --quick --json`` runs and recording leaves results bitwise equal."""
-    script = Path(__file__).resolve().parents[2] / "benchmarks" / "recording_overhead.py"
-    done = subprocess.run(
-        [sys.executable, str(script), "--quick", "--json"], capture_output=True, text=True, timeout=900
-    )
-    assert done.returncode == 0, done.stderr[-2000:]
-    report = json.loads(done.stdout)
+    report = quick_benchmark("recording_overhead.py")  # exit 0, or it fails with the stderr
     assert [(c["points"], c["steps"]) for c in report["cases"]] == [(10_000, 20_000), (200_000, 1_000)]
     for case in report["cases"]:
         assert case["bitwise_identical"] is True

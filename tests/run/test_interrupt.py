@@ -19,7 +19,7 @@ import time
 
 import numpy as np
 import pytest
-from support import MAP_FLAGS, same_state
+from support import MAP_FLAGS, launch, same_state
 
 from warpratchet import Ensemble, MapParams, Observer
 
@@ -123,15 +123,6 @@ def test_sigint_during_ensemble_run_leaves_a_consistent_ensemble(tmp_path):
     assert same_state(state, fresh.state())
 
 
-def _cli(*argv: str) -> subprocess.Popen:
-    return subprocess.Popen(
-        [sys.executable, "-m", "warpratchet.cli", *argv],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-
-
 def _stopped_line(stderr: str, verb: str, target: int) -> int:
     """The one line of a stopped run (no traceback); returns the step it names."""
     assert "Traceback" not in stderr
@@ -169,7 +160,7 @@ def test_a_signal_to_the_cli_checkpoints_where_it_stops_and_the_same_command_con
     argv += ["--out", str(path)]
     steps = []
     for _ in range(2):
-        proc = _cli(*argv)
+        proc = launch(*argv)
         if steps:  # the archive is the command's alone until it says where it continues from
             said = _stderr_line(proc)
             assert said.startswith(f"warpratchet: continuing {path} from its checkpoint at step {steps[-1]} ")
@@ -190,7 +181,7 @@ def test_a_recording_beside_the_archive_ends_at_the_step_reached(tmp_path):
     from rrd import cloud_frames, read_rrd, verify
 
     path, rrd = tmp_path / "run.h5", tmp_path / "run.rrd"
-    proc = _cli(
+    proc = launch(
         "run", *MAP_FLAGS, "--points", "40000", "--steps", "100000000", "--chunk-steps", "1000",
         "--out", str(path), "--rerun", str(rrd),
     )  # fmt: skip
@@ -209,7 +200,7 @@ def test_a_second_ctrl_c_right_after_the_first_corrupts_nothing(tmp_path):
     """Two SIGINTs back to back: the second arrives while the first is being acted on (the chunk
     in flight, the row, the checkpoint, the close) and is only noted; the archive verifies."""
     path = tmp_path / "run.h5"
-    proc = _cli(
+    proc = launch(
         "run",
         *MAP_FLAGS,
         "--points",

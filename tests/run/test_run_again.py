@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 import pytest
-from support import MAP_FLAGS, cli
+from support import MAP_FLAGS, cli, launch
 
 from warpratchet import Ensemble, MapParams, Observer, summarize
 from warpratchet._files import writer_marked
@@ -27,11 +27,6 @@ from warpratchet.archive import Archive, ArchiveError, open_archive
 POINTS, SEED, STEPS = 2000, 7, 200_000  # 2000 chunks: seconds, never done before the interrupt
 RUN = ["run", *MAP_FLAGS, "--points", str(POINTS), "--seed", str(SEED), "--steps", str(STEPS)]
 RUN += ["--chunk-steps", "100", "--checkpoint-every", "500", "--quiet", "--json"]
-
-
-def _launch(*args: str) -> subprocess.Popen:
-    argv = [sys.executable, "-m", "warpratchet.cli", *args]
-    return subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
 def _rows(path) -> int:
@@ -44,7 +39,7 @@ def _rows(path) -> int:
 
 def test_the_same_command_again_resumes(tmp_path):
     out = str(tmp_path / "run.h5")
-    proc = _launch(*RUN, "--out", out)
+    proc = launch(*RUN, "--out", out)
     start = time.monotonic()
     while proc.poll() is None and _rows(out) < 30 and time.monotonic() - start < 900:
         time.sleep(0.01)
@@ -106,7 +101,7 @@ def test_readers_of_a_live_archive_never_get_a_false_error(tmp_path):
     """A writer in another process, a reader opening and reading it as fast as it can."""
     out = str(tmp_path / "live.h5")
     argv = ["run", *MAP_FLAGS, "--points", "3000", "--steps", "30000", "--chunk-steps", "50"]
-    proc = _launch(*argv, "--checkpoint-every", "200", "--quiet", "--out", out)
+    proc = launch(*argv, "--checkpoint-every", "200", "--quiet", "--out", out)
     reads = errors = 0
     messages = []
     try:

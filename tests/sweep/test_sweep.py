@@ -13,7 +13,7 @@ import textwrap
 import h5py
 import numpy as np
 import pytest
-from support import bits, exact_rows
+from support import benchmark, bits, exact_rows
 
 from warpratchet import Ensemble, summarize, theory
 from warpratchet import sweep as sweep_module
@@ -276,24 +276,8 @@ def test_cli_json_rows_and_resume(tmp_path, capsys):
 
 # -- benchmark smoke test -------------------------------------------------------------------------
 def test_sweep_scaling_benchmark_runs_every_executor_with_identical_rows():
-    script = os.path.join(os.path.dirname(__file__), os.pardir, os.pardir, "benchmarks", "sweep_scaling.py")
-    done = subprocess.run(
-        [
-            sys.executable,
-            script,
-            "--quick",
-            "--json",
-            "--sweep-points",
-            "2",
-            "--points",
-            "200",
-            "--steps",
-            "200",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
+    sizes = ["--sweep-points", "2", "--points", "200", "--steps", "200"]
+    done = benchmark("sweep_scaling.py", "--quick", "--json", *sizes)
     assert done.returncode == 0, done.stderr[-3000:]
     assert len(done.stdout.strip().splitlines()) == 1
     report = json.loads(done.stdout)

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
+from support import cli, launch
 
 from warpratchet.sweep import read_sweep
 
@@ -17,9 +18,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 
 def _viz(*args: str, cwd: Path = ROOT, package: str = "viz") -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", package, *args], cwd=cwd, capture_output=True, text=True, timeout=900
-    )
+    return cli(*args, module=package, cwd=cwd)
 
 
 def test_help_exits_0_and_names_every_command():
@@ -41,9 +40,9 @@ def test_missing_or_unknown_command_is_a_usage_error(args):
 def test_ctrl_c_in_figures_prints_one_line_and_exits_130(tmp_path):
     """SIGINT to a real process in the middle of a sweep: one line, status 130, the sweep file kept."""
     out = tmp_path / "figures"
-    argv = [sys.executable, "-m", "viz", "figures", "--only", "fig7", "--out", str(out), "--quiet"]
     # Fig. 7 at the paper's settings takes minutes; the interrupt lands in the first points.
-    proc = subprocess.Popen(argv, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = launch("figures", "--only", "fig7", "--out", str(out), "--quiet", module="viz", cwd=ROOT)
+    argv = proc.args
     try:
         deadline = time.monotonic() + 900
         sweep = out / "sweeps" / "fig7.h5"
