@@ -136,7 +136,7 @@ def archive_flip_census(path, offsets: list[int], workdir, reference: Callable[[
     """
     from functools import cache
 
-    from warpratchet.archive.verify import verify_archive
+    from warpratchet.archive import verify_archive
 
     reference = cache(reference)  # the few checkpoint steps recur over many flips
     want, _ = archive_contents(path)

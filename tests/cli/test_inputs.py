@@ -83,7 +83,9 @@ def test_an_ensemble_beyond_this_machines_memory_is_refused_before_allocation(ca
     with pytest.raises(ResourceError, match=r"^points = 100000000 needs"):  # before any row is run
         run_sweep(maximal_path([0.01]), SweepSpec(points=10**8, steps=10), progress=False)
     _refused_in_one_line(
-        capsys, ["sumrule", *MAP_FLAGS, "--grid", "20000", "--quiet"], "a census of 400000000 points needs"
+        capsys,
+        ["sumrule", *MAP_FLAGS, "--grid", "20000", "--quiet"],
+        "a census of 400000000 points (grid = 20000, a 20000 x 20000 lattice) needs",
     )
 
 

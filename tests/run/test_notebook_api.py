@@ -36,18 +36,24 @@ def test_a_summary_is_computed_once_per_step_for_every_sink(tmp_path, monkeypatc
 
     import warpratchet.ensemble
     from warpratchet.cli import main as cli_main
+    from warpratchet.observables import lyapunov_threshold, summarize_with_variance
 
-    calls = []
+    calls = []  # (step, threshold) of every summary computed, by either route
 
     def spy(state, step, threshold=None, rule="strict", ftle=None, gain=None):
-        calls.append((step, threshold, rule))
+        calls.append((step, lyapunov_threshold(step, rule) if threshold is None else threshold))
         return summarize(state, step, threshold, rule, ftle, gain)
 
+    def spy_on_threads(state, step, threshold, ftle=None, **options):
+        calls.append((step, threshold))
+        return summarize_with_variance(state, step, threshold, ftle, **options)
+
     monkeypatch.setattr(warpratchet.ensemble, "summarize", spy)
+    monkeypatch.setattr(warpratchet.ensemble, "summarize_with_variance", spy_on_threads)
     argv = run_argv("--points", "500", "--steps", "800", "--json", "--quiet", "--out", str(tmp_path / "a.h5"))
     assert cli_main([*argv, "--threshold-rule", "positive"]) == 0
     report = json.loads(capsys.readouterr().out)
-    assert calls and len(calls) == len(set(calls)) and calls[-1] == (800, None, "positive")
+    assert calls and len(calls) == len(set(calls)) and calls[-1] == (800, lyapunov_threshold(800, "positive"))
     with open_archive(tmp_path / "a.h5") as arc:
         series, state = arc.series, arc.checkpoint()[0]
     assert series["step"][-1] == 800 and series["A"][-1] == report["A"] == report["history"]["A"][-1]

@@ -183,7 +183,7 @@ def census(
         raise ValueError("give exactly one of points = N (random) and grid = G (regular lattice)")
     if grid is not None:
         grid = check_count("grid", grid, 2, math.isqrt(MAX_POINTS))
-        check_census_memory(grid * grid)  # before the lattice is built
+        check_census_memory(grid * grid, f"grid = {grid}, a {grid} x {grid} lattice")  # before it is built
         x0, p0 = lattice(grid)
         used_seed = None
     else:

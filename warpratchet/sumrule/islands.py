@@ -55,12 +55,14 @@ CHECKPOINTS = 8
 CLASSIFY_HOST_BYTES_PER_POINT = 448
 
 
-def check_census_memory(points: int) -> None:
-    """ResourceError, before anything is allocated, if a census of ``points`` does not fit here."""
+def check_census_memory(points: int, request: str | None = None) -> None:
+    """ResourceError, before anything is allocated, if a census of ``points`` does not fit here;
+    ``request`` names the setting that asks for them (e.g. ``"grid = 40000"``) in the error."""
     points = check_count("points", points, 1, MAX_POINTS)
     device, host = IndicatorEnsemble.bytes_per_point(), CLASSIFY_HOST_BYTES_PER_POINT
     detail = f"{device} B of state and indicators and {host} B of working memory per point"
-    check_memory(f"a census of {points} points", points * (device + host), detail)
+    what = f"a census of {points} points" + (f" ({request})" if request else "")
+    check_memory(what, points * (device + host), detail)
 
 
 def excursion_bound(m: int | np.ndarray) -> int | np.ndarray:
