@@ -194,9 +194,9 @@ def test_history_rows_beside_spread_rows_are_a_plain_runs_bit_for_bit(monkeypatc
     lent = []
     summarize = observables.summarize_with_variance
 
-    def spy(state, step, threshold=None, rule="strict", ftle=None, **threads):
+    def spy(state, step, threshold, ftle=None, **threads):
         lent.append((step, ftle is not None))
-        return summarize(state, step, threshold, rule, ftle, **threads)
+        return summarize(state, step, threshold, ftle, **threads)
 
     monkeypatch.setattr("warpratchet.ensemble.summarize_with_variance", spy)  # Ensemble.summary's
     known = TransportEnsemble.known_ftle
