@@ -79,3 +79,11 @@ def test_rerun_reports_frames_and_size(tmp_path, capsys):
     size = out.stat().st_size / 1e6
     line = next(line for line in capsys.readouterr().out.splitlines() if "wrote" in line)
     assert re.fullmatch(rf"  wrote {re.escape(str(out))}: \d+ frames, {size:.1f} MB \(view: rerun .*\)", line)
+
+
+def test_a_small_run_prints_a_rate_that_is_not_zero(capsys):
+    """The rate keeps three significant digits: a small run prints ``0.45 M``, not ``0 M``."""
+    assert main(["run", *MAP_FLAGS, *SMALL]) == 0
+    line = next(line for line in capsys.readouterr().out.splitlines() if "point-steps/s" in line)
+    match = re.fullmatch(r"  \d+\.\d\d s, (\S+) M point-steps/s", line)
+    assert match and float(match.group(1)) > 0, line

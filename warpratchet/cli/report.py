@@ -109,7 +109,7 @@ def print_report(report: dict[str, Any], as_json: bool) -> None:
 
         print(format_transport(report["transport"]))
     if report["point_steps_per_second"]:
-        print(f"  {report['seconds']:.2f} s, {report['point_steps_per_second'] / 1e6:.0f} M point-steps/s")
+        print(f"  {report['seconds']:.2f} s, {report['point_steps_per_second'] / 1e6:.3g} M point-steps/s")
     if report.get("recording"):
         import os
 
