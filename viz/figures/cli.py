@@ -41,9 +41,9 @@ def _build_parser(prog: str) -> argparse.ArgumentParser:
         description="Regenerate the paper's figures (PNG and PDF) from warpratchet's own computations.",
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog="examples:\n"
-        f"  {prog} --all --out figures/                 (the paper's settings, ~15 min on 2 cores)\n"
+        f"  {prog} --all --out figures/                 (the paper's settings; README gives the time)\n"
         f"  {prog} --only fig7,fig8 --out figures/ --formats png\n"
-        f"  {prog} --all --quick --out quick/           (small ensembles, well under a minute)",
+        f"  {prog} --all --quick --out quick/           (small ensembles, what the tests run)",
     )
     which = parser.add_mutually_exclusive_group(required=True)
     which.add_argument("--all", action="store_true", help="every figure, fig1 ... fig12")
@@ -52,7 +52,7 @@ def _build_parser(prog: str) -> argparse.ArgumentParser:
     parser.add_argument(
         "--quick",
         action="store_true",
-        help="small ensembles and few sweep points (well under a minute) instead of the "
+        help="small ensembles and few sweep points instead of the "
         "paper's settings (10^4 orbits x 120000 steps)",
     )
     parser.add_argument("--sweeps", type=Path, help="sweep files to reuse or create (default: OUT/sweeps)")

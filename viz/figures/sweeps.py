@@ -51,7 +51,7 @@ class Settings:
 
 
 def settings_for(quick: bool) -> Settings:
-    """Full settings (the paper's, about 10-15 min on 2 cores) or ``--quick`` ones (well under 1 min)."""
+    """Full settings (the paper's) or ``--quick`` ones (small ensembles, few sweep points)."""
     if quick:
         return Settings(
             quick=True,
