@@ -191,7 +191,11 @@ def portrait(plt, params: MapParams, periods: Sequence[int], background: int = 2
                     Polygon(v, closed=True, fc="tab:cyan", ec="tab:blue", alpha=0.5, lw=0.5, label=label)
                 )
             else:
-                label = None if "segment" in seen else "blue segments: periodic points with DM^m = I"
+                label = (
+                    None
+                    if "segment" in seen
+                    else "blue segments: lines of periodic points, DM^m a shear (trace 2, not I)"
+                )
                 ax.plot(v[:, 0], v[:, 1], color="tab:blue", lw=1.0, label=label)
             seen.add(family.shape if family.shape == "polygon" else "segment")
         for orbit in result.orbits:

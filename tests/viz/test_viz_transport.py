@@ -37,6 +37,24 @@ def test_orbit_portrait(tmp_path):
     assert main(["--orbits", "--K", "3", "--period", "1", "-o", str(tmp_path / "x.png")]) == 2
 
 
+def test_orbit_portrait_legend_tells_areas_from_segments():
+    """Polygon families have DM^m = I; segment families a shear of trace 2 (docs/orbits.md)."""
+    from viz.figures.canvas import pyplot
+    from viz.transport import portrait
+    from warpratchet.orbits import enumerate_orbits
+
+    params = MapParams(3.0, 0.1, 0.01)
+    families = enumerate_orbits(params, 3).families
+    assert {(f.shape, f.identity) for f in families} == {("polygon", True), ("segment", False)}
+    plt = pyplot()
+    fig = portrait(plt, params, [3], background=0)
+    labels = [text.get_text() for text in fig.axes[0].get_legend().get_texts()]
+    plt.close(fig)
+    assert "cyan areas: periodic points with DM^m = I" in labels
+    segments = next(label for label in labels if label.startswith("blue segments"))
+    assert "shear" in segments and "= I" not in segments
+
+
 def test_a_flagged_mu_is_never_shown_bare():
     from viz.transport import mu_label
 
