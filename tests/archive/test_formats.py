@@ -3,8 +3,9 @@
 ``tests/data/archive_v1.h5`` and ``tests/data/sweep_v1.h5`` were written by warpratchet 0.1.0,
 ``archive_v2.h5`` and ``sweep_v2.h5`` by format v2 before issue 15 (no ``/history``, no verdict
 columns), ``archive_v2_0.h5`` by format 2.0 with its history (before the CF attributes and named
-dimensions of 2.1); they stand for files users already have. They are opened read-only in place (and
-checked to be byte for byte unchanged afterwards) and resumed only from copies.
+dimensions of 2.1), ``archive_v2_1.h5`` by format 2.1; they stand for files users already have.
+They are opened read-only in place (and checked to be byte for byte unchanged afterwards) and
+resumed only from copies.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from warpratchet.sweep.records import ADDED_COLUMNS
 DATA = Path(__file__).resolve().parents[1] / "data"
 ARCHIVE, SWEEP = DATA / "archive_v1.h5", DATA / "sweep_v1.h5"
 ARCHIVE_V2, SWEEP_V2 = DATA / "archive_v2.h5", DATA / "sweep_v2.h5"
-ARCHIVE_V2_0 = DATA / "archive_v2_0.h5"
+ARCHIVE_V2_0, ARCHIVE_V2_1 = DATA / "archive_v2_0.h5", DATA / "archive_v2_1.h5"
 #: The run that wrote archive_v1.h5 (tests/data/README.md; seed 0 is the CLI's default).
 PARAMS, POINTS, SEED, STEPS = MapParams(3.0, 0.1, 0.01), 200, 0, 512
 SCHEDULE = {"chunk_steps": 64, "snapshot_every": 128, "snapshot_points": 50, "checkpoint_every": 256}
@@ -52,7 +53,7 @@ def archived_run(path: Path, steps: int) -> Ensemble:
 @pytest.fixture(autouse=True)
 def fixtures_untouched():
     """No test may change a fixture file, not even by opening it."""
-    files = (ARCHIVE, SWEEP, ARCHIVE_V2, SWEEP_V2, ARCHIVE_V2_0)
+    files = (ARCHIVE, SWEEP, ARCHIVE_V2, SWEEP_V2, ARCHIVE_V2_0, ARCHIVE_V2_1)
     before = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
     yield
     after = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
@@ -216,3 +217,50 @@ def test_archive_v2_0_opens_exports_and_resumes_as_2_1(tmp_path):
     with open_archive(path) as arc:
         assert arc.h5.attrs["format_minor"] == 1 and arc.h5.attrs["Conventions"] == "CF-1.8"
         assert same_state(arc.checkpoint()[0], want)
+
+
+def _same_run(arc, ref) -> None:
+    """The rows and snapshots of ``arc`` are the first ones of today's ``ref``, bit for bit."""
+    for name in SERIES_FIELDS:
+        if name not in CLOCKS:
+            assert np.array_equal(arc.series[name], ref.series[name][: arc.rows], equal_nan=True), name
+    snaps, want = arc.snapshots, ref.snapshots
+    assert np.array_equal(snaps.indices, want.indices)
+    for name in ("steps", *SNAPSHOT_FIELDS):
+        assert np.array_equal(getattr(snaps, name), getattr(want, name)[: len(snaps)]), name
+
+
+def test_archive_v2_1_opens_verifies_and_exports(reference, capsys):
+    """Format 2.1: today's run bit for bit, every checksum good, the snapshots exported whole."""
+    xr = pytest.importorskip("xarray", reason="the xarray extra is not installed")
+    with open_archive(ARCHIVE_V2_1) as arc, open_archive(reference[0]) as ref:
+        assert arc.format_version == 2 and arc.h5.attrs["format_minor"] == 1
+        assert arc.features == ("history",) and arc.checkpoint_step == STEPS and arc.params == PARAMS
+        _same_run(arc, ref)
+        exported = arc.to_xarray("snapshots")
+        for name in SNAPSHOT_FIELDS:
+            assert np.array_equal(exported[name].values, getattr(arc.snapshots, name)), name
+        assert list(arc.to_pandas().index) == list(arc.series["step"])
+    with xr.open_dataset(ARCHIVE_V2_1, group="snapshots", engine="h5netcdf") as raw:
+        assert np.array_equal(raw["ftle"].values, exported["ftle"].values)
+    assert main(["verify", str(ARCHIVE_V2_1)]) == 0
+    assert main(["inspect", str(ARCHIVE_V2_1)]) == 0
+    assert "checkpoint at step 512" in capsys.readouterr().out
+
+
+def test_archive_v2_1_resumes_bit_for_bit(tmp_path, reference):
+    """Resumed to 1024 steps: the state, rows and snapshots of an uninterrupted run of today, in a
+    file that verify accepts."""
+    path = tmp_path / "v2_1.h5"
+    shutil.copy(ARCHIVE_V2_1, path)
+    sink, ens = ArchiveSink.resume(path, threads=1)
+    with sink:
+        assert ens.step == STEPS and sink.chunk_steps == 64
+        run_to(ens, 2 * STEPS, [sink, sink.history], sink.chunk_steps)
+    uninterrupted = fresh().run(2 * STEPS, chunk_steps=64)
+    assert same_state(ens.state(), uninterrupted.state())
+    with open_archive(path) as arc, open_archive(reference[0]) as ref:
+        assert arc.checkpoint_step == 2 * STEPS and arc.rows == ref.rows
+        assert same_state(arc.ensemble().state(), uninterrupted.state())
+        _same_run(arc, ref)
+    assert main(["verify", str(path)]) == 0
