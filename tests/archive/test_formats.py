@@ -131,6 +131,7 @@ def test_archive_v1_resumes_bit_for_bit(tmp_path, reference):
                 assert np.array_equal(arc.series[name], ref.series[name], equal_nan=True), name
         for name in ("steps", "indices", *SNAPSHOT_FIELDS):
             assert np.array_equal(getattr(arc.snapshots, name), getattr(ref.snapshots, name)), name
+        assert "finite_time_acceleration" in arc.h5["snapshots"] and "A" not in arc.h5["snapshots"]
 
 
 def test_cli_resumes_archive_v1(tmp_path, capsys):
@@ -202,9 +203,9 @@ def test_archive_v2_without_history_opens_and_resumes_with_a_verdict(tmp_path, c
         assert arc.features == () and arc.history is None and arc.checkpoint_step == 4 * STEPS
 
 
-def test_archive_v2_0_opens_exports_and_resumes_as_2_1(tmp_path):
+def test_archive_v2_0_opens_exports_and_resumes_as_today(tmp_path):
     """Format 2.0 (fixed-length strings, no CF attributes, phony dimensions in /initial) reads as
-    before; a resume rebuilds it as 2.1 and continues today's run bit for bit."""
+    before; a resume rebuilds it in today's format (2.2) and continues today's run bit for bit."""
     with open_archive(ARCHIVE_V2_0) as arc:
         assert arc.format_version == 2 and "format_minor" not in arc.h5.attrs
         assert arc.settings["init"] == "strip" and arc.features == ("history",)
@@ -215,8 +216,25 @@ def test_archive_v2_0_opens_exports_and_resumes_as_2_1(tmp_path):
     shutil.copy(ARCHIVE_V2_0, path)
     assert main(["resume", str(path), "--steps", str(4 * STEPS), "--quiet", "--json"]) == 0
     with open_archive(path) as arc:
-        assert arc.h5.attrs["format_minor"] == 1 and arc.h5.attrs["Conventions"] == "CF-1.8"
+        assert arc.h5.attrs["format_minor"] == 2 and arc.h5.attrs["Conventions"] == "CF-1.8"
         assert same_state(arc.checkpoint()[0], want)
+
+
+@pytest.mark.parametrize("path", [ARCHIVE, ARCHIVE_V2, ARCHIVE_V2_0, ARCHIVE_V2_1], ids=lambda p: p.stem)
+def test_former_snapshot_name_reads_as_today(path):
+    """Files before format 2.2 store each point's A_n as /snapshots/A: the reader and the xarray
+    export name it ``finite_time_acceleration``, the same values and units."""
+    xr = pytest.importorskip("xarray", reason="the xarray extra is not installed")
+    with open_archive(path) as arc:
+        stored = arc.h5["snapshots"]
+        assert "A" in stored and "finite_time_acceleration" not in stored
+        snaps = arc.snapshots
+        assert len(snaps) == 4
+        assert np.array_equal(snaps.finite_time_acceleration, stored["A"][: len(snaps)])
+        exported = arc.to_xarray("snapshots")
+        assert "A" not in exported.variables and isinstance(exported, xr.Dataset)
+        assert np.array_equal(exported["finite_time_acceleration"].values, snaps.finite_time_acceleration)
+        assert exported["finite_time_acceleration"].attrs["units"] == "1/iteration"
 
 
 def _same_run(arc, ref) -> None:
@@ -243,6 +261,8 @@ def test_archive_v2_1_opens_verifies_and_exports(reference, capsys):
         assert list(arc.to_pandas().index) == list(arc.series["step"])
     with xr.open_dataset(ARCHIVE_V2_1, group="snapshots", engine="h5netcdf") as raw:
         assert np.array_equal(raw["ftle"].values, exported["ftle"].values)
+        assert "A" in raw.variables and "finite_time_acceleration" not in raw.variables  # as stored
+        assert np.array_equal(raw["A"].values, exported["finite_time_acceleration"].values)
     assert main(["verify", str(ARCHIVE_V2_1)]) == 0
     assert main(["inspect", str(ARCHIVE_V2_1)]) == 0
     assert "checkpoint at step 512" in capsys.readouterr().out
@@ -263,4 +283,7 @@ def test_archive_v2_1_resumes_bit_for_bit(tmp_path, reference):
         assert arc.checkpoint_step == 2 * STEPS and arc.rows == ref.rows
         assert same_state(arc.ensemble().state(), uninterrupted.state())
         _same_run(arc, ref)
+        # Rebuilt in today's format: one name for the snapshots' A_n, never both.
+        assert arc.h5.attrs["format_minor"] == 2
+        assert "finite_time_acceleration" in arc.h5["snapshots"] and "A" not in arc.h5["snapshots"]
     assert main(["verify", str(path)]) == 0

@@ -243,10 +243,11 @@ def test_replay_of_an_archive_equals_its_snapshots_and_series(tmp_path, capsys, 
     rrd_class = tmp_path / "class.rrd"
     assert record_main([str(h5), "-o", str(rrd_class), "--color", "class", "--trail"]) == 0
     frames = cloud_frames(read_rrd(rrd_class))
-    expected = class_ids(snaps.ftle[-1], snaps.A[-1], lyapunov_threshold(400, rule))
+    acc = snaps.finite_time_acceleration[-1]
+    expected = class_ids(snaps.ftle[-1], acc, lyapunov_threshold(400, rule))
     np.testing.assert_array_equal(frames[400]["class_ids"], expected)
     other = "positive" if rule == "strict" else "strict"
-    assert np.any(expected != class_ids(snaps.ftle[-1], snaps.A[-1], lyapunov_threshold(400, other)))
+    assert np.any(expected != class_ids(snaps.ftle[-1], acc, lyapunov_threshold(400, other)))
     verify(rrd_class)
 
 
