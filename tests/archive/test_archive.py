@@ -481,9 +481,11 @@ def test_cli_run_resume_inspect(tmp_path, capsys):
     info = json.loads(capsys.readouterr().out)
     assert info["checkpoint_step"] == 1000 and info["rows"] == 5 and info["snapshots"] == 5
     assert info["latest"]["A"] == s.A and info["params"]["K"] == 3.0 and info["format_version"] == 2
+    assert info["format_minor"] == 2
     assert main(["inspect", path]) == 0
     text = capsys.readouterr().out
     assert "checkpoint at step 1000" in text and "K = 3.0" in text
+    assert "warpratchet-archive v2.2," in text
 
 
 @pytest.mark.parametrize(

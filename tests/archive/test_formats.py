@@ -108,6 +108,7 @@ def test_inspect_prints_archive_v1():
     )
     assert (info["rows"], info["snapshots"], info["params"]["K"]) == (8, 4, 3.0)
     assert info["latest"]["A"] == 0.14617400228230937
+    assert info["format_minor"] == 0  # absent in version 1
     proc = cli("inspect", str(ARCHIVE))
     assert proc.returncode == 0, proc.stderr
     assert "checkpoint at step 512" in proc.stdout and "K = 3.0" in proc.stdout
@@ -252,7 +253,7 @@ def test_archive_v2_1_opens_verifies_and_exports(reference, capsys):
     """Format 2.1: today's run bit for bit, every checksum good, the snapshots exported whole."""
     xr = pytest.importorskip("xarray", reason="the xarray extra is not installed")
     with open_archive(ARCHIVE_V2_1) as arc, open_archive(reference[0]) as ref:
-        assert arc.format_version == 2 and arc.h5.attrs["format_minor"] == 1
+        assert arc.format_version == 2 and arc.h5.attrs["format_minor"] == 1 == arc.format_minor
         assert arc.features == ("history",) and arc.checkpoint_step == STEPS and arc.params == PARAMS
         _same_run(arc, ref)
         exported = arc.to_xarray("snapshots")
@@ -265,7 +266,8 @@ def test_archive_v2_1_opens_verifies_and_exports(reference, capsys):
         assert np.array_equal(raw["A"].values, exported["finite_time_acceleration"].values)
     assert main(["verify", str(ARCHIVE_V2_1)]) == 0
     assert main(["inspect", str(ARCHIVE_V2_1)]) == 0
-    assert "checkpoint at step 512" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "checkpoint at step 512" in out and "warpratchet-archive v2.1," in out
 
 
 def test_archive_v2_1_resumes_bit_for_bit(tmp_path, reference):

@@ -145,6 +145,9 @@ class Archive:
             check_text(self.path, obj, f"the text attributes of {what}")
         with reading(self.path, "the metadata"):
             self.created = str(attr_value(f.attrs["created"]))
+            #: Changes within the version (``/@format_minor``; absent: 0): 2 names each snapshot
+            #: point's A_n ``finite_time_acceleration``, which earlier files store as ``A``.
+            self.format_minor = int(attr_value(f.attrs.get("format_minor", 0)))
             features = str(attr_value(f.attrs.get("features", b"")))
             self.features = tuple(name for name in features.split(",") if name)
             p = {k: attr_value(v) for k, v in f["params"].attrs.items()}
@@ -324,6 +327,7 @@ class Archive:
             "path": self.path,
             "format": FORMAT,
             "format_version": self.format_version,
+            "format_minor": self.format_minor,
             "features": list(self.features),
             "created": self.created,
             "params": self.params.as_dict(),
