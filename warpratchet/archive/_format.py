@@ -102,8 +102,8 @@ __all__ = [
 FORMAT = "warpratchet-archive"
 #: Layout version written, root attribute ``format_version``.
 FORMAT_VERSION = 2
-#: Additions within version 2 that older readers ignore, root attribute ``format_minor``
-#: (absent: 0; module docstring).
+#: Changes within version 2, root attribute ``format_minor`` (absent: 0; module docstring):
+#: 1 adds what older readers ignore, 2 renames ``/snapshots/A`` (:data:`FORMER_NAMES`).
 FORMAT_MINOR = 2
 #: Layout versions this release reads (and resumes: a resumed version-1 archive is rebuilt as 2).
 READABLE_VERSIONS = (1, 2)

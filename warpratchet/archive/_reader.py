@@ -505,9 +505,9 @@ def unwrapped_momentum(
 
     ``p0`` ``(M,)`` is the points' initial momentum (``/initial/p0`` at ``/snapshots/indices``),
     ``steps`` ``(S,)``, ``p`` (mod 1) and ``finite_time_acceleration`` (``A_n``) ``(S, M)`` the
-    snapshots'. ``p0 + n A_n`` carries
-    the rounding of ``A_n``; its whole part is exact once rounded against the stored ``p`` mod 1,
-    so the result is ``round(p0 + n A_n - p) + p``, the stored fraction unchanged.
+    snapshots'. ``p0 + n A_n`` carries the rounding of ``A_n``; its whole part is exact once
+    rounded against the stored ``p`` mod 1, so the result is ``round(p0 + n A_n - p) + p``, the
+    stored fraction unchanged.
     """
     approx = p0[None, :] + steps[:, None].astype(np.float64) * finite_time_acceleration
     return np.round(approx - p) + p
