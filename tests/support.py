@@ -113,7 +113,7 @@ def same_contents(a: dict, b: dict) -> bool:
     series = all(np.array_equal(a["series"][k], b["series"][k], equal_nan=True) for k in a["series"])
     snaps = all(
         np.array_equal(getattr(a["snapshots"], k), getattr(b["snapshots"], k))
-        for k in ("steps", "indices", "x", "p", "ftle", "A")
+        for k in ("steps", "indices", "x", "p", "ftle", "finite_time_acceleration")
     )
     return (
         series

@@ -39,7 +39,7 @@ def replay(
     ----------
     archive : warpratchet.archive.Archive
         From :func:`warpratchet.archive.open_archive`: ``params``, ``settings``, ``series`` and
-        ``snapshots`` (``steps (S,)``, ``x, p, ftle, A (S, M)``) are read.
+        ``snapshots`` (``steps (S,)``, ``x, p, ftle, finite_time_acceleration (S, M)``) are read.
     path : str or Path, optional
         ``.rrd`` file to create (must not exist).
     spawn, color_by, trail
@@ -70,7 +70,7 @@ def replay(
                 snaps.x[s],
                 snaps.p[s],
                 ftle=snaps.ftle[s],
-                acc=snaps.A[s],
+                acc=snaps.finite_time_acceleration[s],
                 threshold=lyapunov_threshold(step, rule) if threshold is None else threshold,
             )
         if len(series["step"]):

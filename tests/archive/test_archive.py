@@ -29,7 +29,7 @@ from support import (
     written_names,
 )
 
-from warpratchet import Ensemble, MapParams, Observer, open_archive, summarize
+from warpratchet import Ensemble, MapParams, Observer, finite_time_acceleration, open_archive, summarize
 from warpratchet.archive import (
     SERIES_FIELDS,
     ArchiveError,
@@ -112,7 +112,8 @@ def test_archive_holds_the_run(archived):
         assert np.all(series["wall_time"] > 0)
         snaps = arc.snapshots
         assert list(snaps.steps) == [200, 400, 600, 800, 1000]
-        assert snaps.x.shape == snaps.p.shape == snaps.ftle.shape == snaps.A.shape == (5, 40)
+        acc = snaps.finite_time_acceleration
+        assert snaps.x.shape == snaps.p.shape == snaps.ftle.shape == acc.shape == (5, 40)
         assert np.all(np.diff(snaps.indices) > 0) and snaps.indices[-1] < POINTS
         for row, step in enumerate(snaps.steps):
             st = states[int(step)]
@@ -123,6 +124,24 @@ def test_archive_holds_the_run(archived):
         restored = arc.ensemble(threads=1)
         assert restored.step == 1000 and same_state(restored.state(), ens.state())
         assert same_state(arc.initial, states[0])
+
+
+def test_snapshots_name_each_points_acceleration_apart_from_the_mean(archived):
+    """Each point's A_n of Eq. (An) is ``finite_time_acceleration`` (the API's name) in the file and
+    in the reader; ``A`` is only the ensemble's mean, in /series; format 2.2."""
+    path, _, states = archived
+    with h5py.File(path, "r") as f:
+        assert f.attrs["format_minor"] == 2
+        assert "finite_time_acceleration" in f["snapshots"] and "A" not in f["snapshots"]
+        assert "A" in f["series"] and "finite_time_acceleration" not in f["series"]
+        assert "Eq. (An) of each point" in f["snapshots/finite_time_acceleration"].attrs["long_name"]
+    with open_archive(path) as arc:
+        snaps = arc.snapshots
+        for row, step in enumerate(snaps.steps):
+            want = finite_time_acceleration(states[int(step)], int(step))[snaps.indices]
+            assert np.array_equal(snaps.finite_time_acceleration[row], want), step
+        with pytest.warns(DeprecationWarning, match="Snapshots.A is spelled Snapshots.finite_time_accel"):
+            assert snaps.A is snaps.finite_time_acceleration
 
 
 def test_snapshots_empty_without_schedule(tmp_path):
@@ -289,7 +308,7 @@ def test_every_dataset_describes_itself(archived):
                 assert ds.is_scale or len(ds.dims[axis]) == 1, f"{ds.name} axis {axis} has no dimension"
         for name in SERIES_FIELDS[1:]:
             assert f["series"][name].dims[0][0] == f["series/step"], name
-        for name in ("x", "p", "ftle", "A"):
+        for name in ("x", "p", "ftle", "finite_time_acceleration"):
             dims = f["snapshots"][name].dims
             assert dims[0][0] == f["snapshots/step"] and dims[1][0] == f["snapshots/indices"], name
         # Closed: exactly the valid rows, no allocated zeros past them.
@@ -389,7 +408,7 @@ def test_flipped_bytes_never_give_silent_wrong_data(tmp_path, request, which):
         assert same_state(state, states[step]), f"offset {offset}: checkpoint differs from the run at {step}"
         assert (step == 1000) == (not notes), f"offset {offset}: recovery {notes} must be announced"
         assert same_series(got["series"], want["series"]), f"offset {offset}: series differ"
-        for name in ("steps", "indices", "x", "p", "ftle", "A"):
+        for name in ("steps", "indices", "x", "p", "ftle", "finite_time_acceleration"):
             assert np.array_equal(getattr(got["snapshots"], name), getattr(want["snapshots"], name))
         assert same_state(got["initial"], want["initial"]) and got["meta"] == want["meta"]
         outcomes.append("recovered" if notes else "same")
@@ -462,9 +481,11 @@ def test_cli_run_resume_inspect(tmp_path, capsys):
     info = json.loads(capsys.readouterr().out)
     assert info["checkpoint_step"] == 1000 and info["rows"] == 5 and info["snapshots"] == 5
     assert info["latest"]["A"] == s.A and info["params"]["K"] == 3.0 and info["format_version"] == 2
+    assert info["format_minor"] == 2
     assert main(["inspect", path]) == 0
     text = capsys.readouterr().out
     assert "checkpoint at step 1000" in text and "K = 3.0" in text
+    assert "warpratchet-archive v2.2," in text
 
 
 @pytest.mark.parametrize(

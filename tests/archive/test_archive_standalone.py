@@ -46,7 +46,7 @@ def test_string_attributes_read_as_str(archive):
 def test_global_attributes_say_what_the_file_is(archive):
     with h5py.File(archive, "r") as f:
         root, series = dict(f.attrs), dict(f["series"].attrs)
-    assert root["Conventions"] == "CF-1.8" and root["format_minor"] == 1
+    assert root["Conventions"] == "CF-1.8" and root["format_minor"] == 2
     for key in ("title", "history", "source", "references"):
         assert isinstance(root[key], str) and root[key], key
     assert "Dana" in root["references"] and "Roitberg" in root["references"]
@@ -117,6 +117,9 @@ def test_export_matches_the_raw_netcdf_route(archive, group):
             assert ours[name].dtype == variable.dtype, name
             assert np.array_equal(ours[name].values, variable.values, equal_nan=True), name
         assert ours.attrs["Conventions"] == "CF-1.8" and ours.attrs["A_theory"] == arc.h5.attrs["A_theory"]
+        if group == "snapshots":  # each point's A_n named apart from the ensemble's A of /series
+            assert "finite_time_acceleration" in raw.variables and "A" not in raw.variables
+            assert ours["finite_time_acceleration"].attrs["units"] == "1/iteration"
         if group == "series":
             assert np.issubdtype(ours["unix_time"].dtype, np.datetime64)
             assert raw.attrs["A_theory"] == ours.attrs["A_theory"]  # /series carries it too

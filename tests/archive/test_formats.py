@@ -3,8 +3,9 @@
 ``tests/data/archive_v1.h5`` and ``tests/data/sweep_v1.h5`` were written by warpratchet 0.1.0,
 ``archive_v2.h5`` and ``sweep_v2.h5`` by format v2 before issue 15 (no ``/history``, no verdict
 columns), ``archive_v2_0.h5`` by format 2.0 with its history (before the CF attributes and named
-dimensions of 2.1); they stand for files users already have. They are opened read-only in place (and
-checked to be byte for byte unchanged afterwards) and resumed only from copies.
+dimensions of 2.1), ``archive_v2_1.h5`` by format 2.1; they stand for files users already have.
+They are opened read-only in place (and checked to be byte for byte unchanged afterwards) and
+resumed only from copies.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from warpratchet.sweep.records import ADDED_COLUMNS
 DATA = Path(__file__).resolve().parents[1] / "data"
 ARCHIVE, SWEEP = DATA / "archive_v1.h5", DATA / "sweep_v1.h5"
 ARCHIVE_V2, SWEEP_V2 = DATA / "archive_v2.h5", DATA / "sweep_v2.h5"
-ARCHIVE_V2_0 = DATA / "archive_v2_0.h5"
+ARCHIVE_V2_0, ARCHIVE_V2_1 = DATA / "archive_v2_0.h5", DATA / "archive_v2_1.h5"
 #: The run that wrote archive_v1.h5 (tests/data/README.md; seed 0 is the CLI's default).
 PARAMS, POINTS, SEED, STEPS = MapParams(3.0, 0.1, 0.01), 200, 0, 512
 SCHEDULE = {"chunk_steps": 64, "snapshot_every": 128, "snapshot_points": 50, "checkpoint_every": 256}
@@ -52,7 +53,7 @@ def archived_run(path: Path, steps: int) -> Ensemble:
 @pytest.fixture(autouse=True)
 def fixtures_untouched():
     """No test may change a fixture file, not even by opening it."""
-    files = (ARCHIVE, SWEEP, ARCHIVE_V2, SWEEP_V2, ARCHIVE_V2_0)
+    files = (ARCHIVE, SWEEP, ARCHIVE_V2, SWEEP_V2, ARCHIVE_V2_0, ARCHIVE_V2_1)
     before = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
     yield
     after = {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
@@ -107,6 +108,7 @@ def test_inspect_prints_archive_v1():
     )
     assert (info["rows"], info["snapshots"], info["params"]["K"]) == (8, 4, 3.0)
     assert info["latest"]["A"] == 0.14617400228230937
+    assert info["format_minor"] == 0  # absent in version 1
     proc = cli("inspect", str(ARCHIVE))
     assert proc.returncode == 0, proc.stderr
     assert "checkpoint at step 512" in proc.stdout and "K = 3.0" in proc.stdout
@@ -130,6 +132,7 @@ def test_archive_v1_resumes_bit_for_bit(tmp_path, reference):
                 assert np.array_equal(arc.series[name], ref.series[name], equal_nan=True), name
         for name in ("steps", "indices", *SNAPSHOT_FIELDS):
             assert np.array_equal(getattr(arc.snapshots, name), getattr(ref.snapshots, name)), name
+        assert "finite_time_acceleration" in arc.h5["snapshots"] and "A" not in arc.h5["snapshots"]
 
 
 def test_cli_resumes_archive_v1(tmp_path, capsys):
@@ -201,9 +204,9 @@ def test_archive_v2_without_history_opens_and_resumes_with_a_verdict(tmp_path, c
         assert arc.features == () and arc.history is None and arc.checkpoint_step == 4 * STEPS
 
 
-def test_archive_v2_0_opens_exports_and_resumes_as_2_1(tmp_path):
+def test_archive_v2_0_opens_exports_and_resumes_as_today(tmp_path):
     """Format 2.0 (fixed-length strings, no CF attributes, phony dimensions in /initial) reads as
-    before; a resume rebuilds it as 2.1 and continues today's run bit for bit."""
+    before; a resume rebuilds it in today's format (2.2) and continues today's run bit for bit."""
     with open_archive(ARCHIVE_V2_0) as arc:
         assert arc.format_version == 2 and "format_minor" not in arc.h5.attrs
         assert arc.settings["init"] == "strip" and arc.features == ("history",)
@@ -214,5 +217,75 @@ def test_archive_v2_0_opens_exports_and_resumes_as_2_1(tmp_path):
     shutil.copy(ARCHIVE_V2_0, path)
     assert main(["resume", str(path), "--steps", str(4 * STEPS), "--quiet", "--json"]) == 0
     with open_archive(path) as arc:
-        assert arc.h5.attrs["format_minor"] == 1 and arc.h5.attrs["Conventions"] == "CF-1.8"
+        assert arc.h5.attrs["format_minor"] == 2 and arc.h5.attrs["Conventions"] == "CF-1.8"
         assert same_state(arc.checkpoint()[0], want)
+
+
+@pytest.mark.parametrize("path", [ARCHIVE, ARCHIVE_V2, ARCHIVE_V2_0, ARCHIVE_V2_1], ids=lambda p: p.stem)
+def test_former_snapshot_name_reads_as_today(path):
+    """Files before format 2.2 store each point's A_n as /snapshots/A: the reader and the xarray
+    export name it ``finite_time_acceleration``, the same values and units."""
+    xr = pytest.importorskip("xarray", reason="the xarray extra is not installed")
+    with open_archive(path) as arc:
+        stored = arc.h5["snapshots"]
+        assert "A" in stored and "finite_time_acceleration" not in stored
+        snaps = arc.snapshots
+        assert len(snaps) == 4
+        assert np.array_equal(snaps.finite_time_acceleration, stored["A"][: len(snaps)])
+        exported = arc.to_xarray("snapshots")
+        assert "A" not in exported.variables and isinstance(exported, xr.Dataset)
+        assert np.array_equal(exported["finite_time_acceleration"].values, snaps.finite_time_acceleration)
+        assert exported["finite_time_acceleration"].attrs["units"] == "1/iteration"
+
+
+def _same_run(arc, ref) -> None:
+    """The rows and snapshots of ``arc`` are the first ones of today's ``ref``, bit for bit."""
+    for name in SERIES_FIELDS:
+        if name not in CLOCKS:
+            assert np.array_equal(arc.series[name], ref.series[name][: arc.rows], equal_nan=True), name
+    snaps, want = arc.snapshots, ref.snapshots
+    assert np.array_equal(snaps.indices, want.indices)
+    for name in ("steps", *SNAPSHOT_FIELDS):
+        assert np.array_equal(getattr(snaps, name), getattr(want, name)[: len(snaps)]), name
+
+
+def test_archive_v2_1_opens_verifies_and_exports(reference, capsys):
+    """Format 2.1: today's run bit for bit, every checksum good, the snapshots exported whole."""
+    xr = pytest.importorskip("xarray", reason="the xarray extra is not installed")
+    with open_archive(ARCHIVE_V2_1) as arc, open_archive(reference[0]) as ref:
+        assert arc.format_version == 2 and arc.h5.attrs["format_minor"] == 1 == arc.format_minor
+        assert arc.features == ("history",) and arc.checkpoint_step == STEPS and arc.params == PARAMS
+        _same_run(arc, ref)
+        exported = arc.to_xarray("snapshots")
+        for name in SNAPSHOT_FIELDS:
+            assert np.array_equal(exported[name].values, getattr(arc.snapshots, name)), name
+        assert list(arc.to_pandas().index) == list(arc.series["step"])
+    with xr.open_dataset(ARCHIVE_V2_1, group="snapshots", engine="h5netcdf") as raw:
+        assert np.array_equal(raw["ftle"].values, exported["ftle"].values)
+        assert "A" in raw.variables and "finite_time_acceleration" not in raw.variables  # as stored
+        assert np.array_equal(raw["A"].values, exported["finite_time_acceleration"].values)
+    assert main(["verify", str(ARCHIVE_V2_1)]) == 0
+    assert main(["inspect", str(ARCHIVE_V2_1)]) == 0
+    out = capsys.readouterr().out
+    assert "checkpoint at step 512" in out and "warpratchet-archive v2.1," in out
+
+
+def test_archive_v2_1_resumes_bit_for_bit(tmp_path, reference):
+    """Resumed to 1024 steps: the state, rows and snapshots of an uninterrupted run of today, in a
+    file that verify accepts."""
+    path = tmp_path / "v2_1.h5"
+    shutil.copy(ARCHIVE_V2_1, path)
+    sink, ens = ArchiveSink.resume(path, threads=1)
+    with sink:
+        assert ens.step == STEPS and sink.chunk_steps == 64
+        run_to(ens, 2 * STEPS, [sink, sink.history], sink.chunk_steps)
+    uninterrupted = fresh().run(2 * STEPS, chunk_steps=64)
+    assert same_state(ens.state(), uninterrupted.state())
+    with open_archive(path) as arc, open_archive(reference[0]) as ref:
+        assert arc.checkpoint_step == 2 * STEPS and arc.rows == ref.rows
+        assert same_state(arc.ensemble().state(), uninterrupted.state())
+        _same_run(arc, ref)
+        # Rebuilt in today's format: one name for the snapshots' A_n, never both.
+        assert arc.h5.attrs["format_minor"] == 2
+        assert "finite_time_acceleration" in arc.h5["snapshots"] and "A" not in arc.h5["snapshots"]
+    assert main(["verify", str(path)]) == 0

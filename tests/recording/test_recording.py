@@ -243,11 +243,33 @@ def test_replay_of_an_archive_equals_its_snapshots_and_series(tmp_path, capsys, 
     rrd_class = tmp_path / "class.rrd"
     assert record_main([str(h5), "-o", str(rrd_class), "--color", "class", "--trail"]) == 0
     frames = cloud_frames(read_rrd(rrd_class))
-    expected = class_ids(snaps.ftle[-1], snaps.A[-1], lyapunov_threshold(400, rule))
+    acc = snaps.finite_time_acceleration[-1]
+    expected = class_ids(snaps.ftle[-1], acc, lyapunov_threshold(400, rule))
     np.testing.assert_array_equal(frames[400]["class_ids"], expected)
     other = "positive" if rule == "strict" else "strict"
-    assert np.any(expected != class_ids(snaps.ftle[-1], snaps.A[-1], lyapunov_threshold(400, other)))
+    assert np.any(expected != class_ids(snaps.ftle[-1], acc, lyapunov_threshold(400, other)))
     verify(rrd_class)
+
+
+def test_replay_of_a_format_2_1_archive_classes_by_its_stored_a_n(tmp_path, capsys):
+    """An archive written before format 2.2 (each point's A_n stored as /snapshots/A) replays by
+    class with those values, read in place."""
+    from pathlib import Path
+
+    from viz.record import main as record_main
+    from warpratchet.archive import open_archive
+
+    fixture = Path(__file__).resolve().parents[1] / "data" / "archive_v2_1.h5"
+    rrd_path = tmp_path / "old.rrd"
+    assert record_main([str(fixture), "-o", str(rrd_path), "--color", "class"]) == 0
+    assert "4 frames" in capsys.readouterr().out
+    with open_archive(fixture) as arc:
+        stored = arc.h5["snapshots"]["A"][-1]
+        snaps = arc.snapshots
+    frames = cloud_frames(read_rrd(rrd_path))
+    expected = class_ids(snaps.ftle[-1], stored, lyapunov_threshold(512, "strict"))
+    np.testing.assert_array_equal(frames[512]["class_ids"], expected)
+    verify(rrd_path)
 
 
 # -- the paper's scenes --------------------------------------------------------------------------------

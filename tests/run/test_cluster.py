@@ -308,6 +308,9 @@ def test_out_is_one_archive_of_the_whole_run(client, references, tmp_path):
         assert list(series["step"]) == history.rows["step"]
         assert exact(float(series["A"][-1])) == exact(summary["A"])
         assert exact(float(series["A_stderr"][-1])) == exact(summary["A_stderr"])
+        snapshots = arc.h5["snapshots"]  # none in a merged archive, named as in every new one
+        assert len(arc.snapshots) == 0 and arc.h5.attrs["format_minor"] == 2
+        assert "finite_time_acceleration" in snapshots and "A" not in snapshots
         state, step = arc.checkpoint()
         initial = arc.initial
         ds = arc.to_xarray()

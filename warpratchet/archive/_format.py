@@ -22,6 +22,10 @@ readers ignore: CF global attributes (``Conventions``, ``title``, ``history``, `
 netCDF dimensions ``point`` (``/initial``, ``/checkpoint``) and ``counter`` (the ``(1,)``
 counters), so that no dataset has an unnamed dimension.
 
+Minor version 2 names each snapshot point's ``A_n`` of Eq. (An) ``finite_time_acceleration``, as
+the API does, apart from the ensemble's mean ``A`` of ``/series``; earlier files store it as
+``/snapshots/A``, which readers map to the new name (:data:`FORMER_NAMES`, :func:`stored_name`).
+
 Building an archive: :func:`settings_attrs` and :func:`read_settings` translate a run's
 settings to and from the ``/settings`` attributes (RunSpec's names,
 :meth:`warpratchet.spec.RunSpec.to_attrs`, plus the archive's own schedule and the kernel's
@@ -68,6 +72,8 @@ __all__ = [
     "SERIES_FIELDS",
     "INT_SERIES",
     "SNAPSHOT_FIELDS",
+    "FORMER_NAMES",
+    "stored_name",
     "SLOTS",
     "COUNTERS",
     "HISTORY_COUNTERS",
@@ -96,9 +102,9 @@ __all__ = [
 FORMAT = "warpratchet-archive"
 #: Layout version written, root attribute ``format_version``.
 FORMAT_VERSION = 2
-#: Additions within version 2 that older readers ignore, root attribute ``format_minor``
-#: (absent: 0; module docstring).
-FORMAT_MINOR = 1
+#: Changes within version 2, root attribute ``format_minor`` (absent: 0; module docstring):
+#: 1 adds what older readers ignore, 2 renames ``/snapshots/A`` (:data:`FORMER_NAMES`).
+FORMAT_MINOR = 2
 #: Layout versions this release reads (and resumes: a resumed version-1 archive is rebuilt as 2).
 READABLE_VERSIONS = (1, 2)
 
@@ -118,7 +124,10 @@ SERIES_FIELDS = (
 )
 INT_SERIES = ("step", "chaotic_points")
 #: Per-point arrays of ``/snapshots``, each ``(S, M)``.
-SNAPSHOT_FIELDS = ("x", "p", "ftle", "A")
+SNAPSHOT_FIELDS = ("x", "p", "ftle", "finite_time_acceleration")
+#: Datasets that files before minor version 2 store under another name, by group: the per-point
+#: ``A_n`` of Eq. (An) was ``/snapshots/A``, the name of the ensemble's mean in ``/series``.
+FORMER_NAMES = {"snapshots": {"finite_time_acceleration": "A"}}
 #: The two checkpoint slots, ``/checkpoint/a`` and ``/checkpoint/b`` (``current`` = 0 or 1).
 SLOTS = ("a", "b")
 
@@ -140,12 +149,20 @@ HISTORY_COUNTERS = {"rows": "progress/history_rows", "blocks": "progress/block_r
 #: Optional groups a later release may add without a new major version, as named in the root
 #: attribute ``features`` (a comma-separated list, empty for none). A reader ignores groups it
 #: does not know and reads a feature only when it is listed; a change that an older reader would
-#: misread (a renamed or reinterpreted dataset) bumps ``format_version`` instead.
+#: misread (a reinterpreted dataset) bumps ``format_version`` instead, a renamed dataset (which an
+#: older reader cannot find, so does not misread) ``format_minor``, with :data:`FORMER_NAMES`.
 KNOWN_FEATURES = {
     "history": "/history: log-spaced rows of A_n, its standard error, sigma, the chaotic fraction "
     "and variances, and block gains of a subsample",
     "transport": "/transport: momentum histograms",
 }
+
+
+def stored_name(group: h5py.Group, name: str) -> str:
+    """The name under which the archive group ``group`` stores dataset ``name``: ``name``, or in
+    a file written before it was named so, its :data:`FORMER_NAMES` entry."""
+    former = FORMER_NAMES.get(group.name.lstrip("/"), {}).get(name)
+    return former if former is not None and name not in group and former in group else name
 
 
 def describe(group: str, name: str) -> tuple[str, str]:

@@ -21,9 +21,10 @@ An archive as a ``pandas.DataFrame`` or an ``xarray.Dataset`` (the optional ``xa
 :mod:`warpratchet.glossary`. The file itself also opens directly: ``xarray.open_dataset(path,
 group="series", engine="h5netcdf")`` (format v2). Both routes give the same dimension names (the
 names netCDF readers give the file's dimension scales: ``step``, ``indices``, ``block_step``,
-``block_indices``) and decode ``unix_time`` alike (``datetime64``, CF time units).
-:func:`dataset` adds one derived variable to the snapshots, the unwrapped momentum
-``p_unwrapped`` (:func:`unwrapped_momentum`).
+``block_indices``) and decode ``unix_time`` alike (``datetime64``, CF time units); a file written
+before minor version 2 stores the snapshots' ``finite_time_acceleration`` as ``A``, which the
+direct route reads under that name and :func:`dataset` under today's. :func:`dataset` adds one
+derived variable to the snapshots, the unwrapped momentum ``p_unwrapped`` (:func:`unwrapped_momentum`).
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ from ._format import (
     ArchiveWarning,
     describe,
     read_settings,
+    stored_name,
 )
 from ._rows import (
     Snapshots,
@@ -143,6 +145,9 @@ class Archive:
             check_text(self.path, obj, f"the text attributes of {what}")
         with reading(self.path, "the metadata"):
             self.created = str(attr_value(f.attrs["created"]))
+            #: Changes within the version (``/@format_minor``; absent: 0): 2 names each snapshot
+            #: point's A_n ``finite_time_acceleration``, which earlier files store as ``A``.
+            self.format_minor = int(attr_value(f.attrs.get("format_minor", 0)))
             features = str(attr_value(f.attrs.get("features", b"")))
             self.features = tuple(name for name in features.split(",") if name)
             p = {k: attr_value(v) for k, v in f["params"].attrs.items()}
@@ -322,6 +327,7 @@ class Archive:
             "path": self.path,
             "format": FORMAT,
             "format_version": self.format_version,
+            "format_minor": self.format_minor,
             "features": list(self.features),
             "created": self.created,
             "params": self.params.as_dict(),
@@ -450,8 +456,9 @@ def _need(module: str) -> Any:
 
 
 def attributes(arc, group: str, name: str) -> dict[str, str]:
-    """``units`` and ``long_name`` of ``/group/name`` as stored (format v1: as documented)."""
-    attrs = arc.h5[group][name].attrs
+    """``units`` and ``long_name`` of ``/group/name`` as stored (format v1: as documented), found
+    under its former name in a file written before it had this one."""
+    attrs = arc.h5[group][stored_name(arc.h5[group], name)].attrs
     if "units" in attrs and "long_name" in attrs:
         return {"units": str(attr_value(attrs["units"])), "long_name": str(attr_value(attrs["long_name"]))}
     units, long_name = describe(group, name)
@@ -491,15 +498,18 @@ def series_frame(arc, group: str = "series"):
     return frame
 
 
-def unwrapped_momentum(p0: np.ndarray, steps: np.ndarray, p: np.ndarray, A: np.ndarray) -> np.ndarray:
+def unwrapped_momentum(
+    p0: np.ndarray, steps: np.ndarray, p: np.ndarray, finite_time_acceleration: np.ndarray
+) -> np.ndarray:
     """The momentum ``p_n`` of snapshot points, not reduced mod 1: ``p0 + n A_n`` (Eq. An).
 
     ``p0`` ``(M,)`` is the points' initial momentum (``/initial/p0`` at ``/snapshots/indices``),
-    ``steps`` ``(S,)``, ``p`` (mod 1) and ``A`` ``(S, M)`` the snapshots'. ``p0 + n A_n`` carries
-    the rounding of ``A_n``; its whole part is exact once rounded against the stored ``p`` mod 1,
-    so the result is ``round(p0 + n A_n - p) + p``, the stored fraction unchanged.
+    ``steps`` ``(S,)``, ``p`` (mod 1) and ``finite_time_acceleration`` (``A_n``) ``(S, M)`` the
+    snapshots'. ``p0 + n A_n`` carries the rounding of ``A_n``; its whole part is exact once
+    rounded against the stored ``p`` mod 1, so the result is ``round(p0 + n A_n - p) + p``, the
+    stored fraction unchanged.
     """
-    approx = p0[None, :] + steps[:, None].astype(np.float64) * A
+    approx = p0[None, :] + steps[:, None].astype(np.float64) * finite_time_acceleration
     return np.round(approx - p) + p
 
 
@@ -513,7 +523,8 @@ def _dataset_attrs(arc) -> dict[str, Any]:
 def dataset(arc, group: str = "series"):
     """``/series`` (dimension ``step``), ``/snapshots`` (``step``, ``indices``) or ``/history``
     (``step``; block gains on ``block_step``, ``block_indices``) as a Dataset, named and decoded as
-    ``xarray.open_dataset(path, group=group, engine="h5netcdf")`` names and decodes the file."""
+    ``xarray.open_dataset(path, group=group, engine="h5netcdf")`` names and decodes the file (a
+    file before minor version 2: its snapshots' ``A`` named ``finite_time_acceleration``)."""
     xr = _need("xarray")
     attrs = _dataset_attrs(arc)
     if group == "series":
@@ -535,7 +546,7 @@ def dataset(arc, group: str = "series"):
         units, long_name = describe("snapshots", "p_unwrapped")
         data["p_unwrapped"] = (
             dims,
-            unwrapped_momentum(p0, snaps.steps, snaps.p, snaps.A),
+            unwrapped_momentum(p0, snaps.steps, snaps.p, snaps.finite_time_acceleration),
             {"units": units, "long_name": long_name},
         )
         return xr.Dataset(data, coords=coords, attrs=attrs)

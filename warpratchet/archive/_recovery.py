@@ -6,7 +6,9 @@ from what is valid in it: the metadata, the initial state, the series rows and s
 the newest good checkpoint, and that checkpoint. :func:`salvage` reads all of it (refusing a
 kernel that would not continue the run bit for bit); :meth:`Salvage.write` puts it into the new
 file, whose layout :func:`~warpratchet.archive._format.create` has made. Rows past the checkpoint
-are dropped: the resumed run writes them again, identically (only their clocks differ).
+are dropped: the resumed run writes them again, identically (only their clocks differ). The
+rebuilt file has today's layout and names: a file of an earlier format keeps its values, and its
+snapshots' ``A`` (before minor version 2) becomes ``finite_time_acceleration``.
 
 Damage costs only what it hit: a series row or snapshot whose checksum fails is
 left out, a damaged initial state of a sampled ensemble is sampled again (the samplers are
@@ -58,6 +60,7 @@ from ._format import (
     ArchiveError,
     ArchiveWarning,
     kernel_constants,
+    stored_name,
 )
 from ._reader import Archive, Snapshots
 from ._rows import fill_rows, listed, nonfinite, read_counter, reading, slot_step
@@ -122,18 +125,20 @@ class Salvage:
 def _readable_rows(
     arc: Archive, group: str, names: Sequence[str], n: int, problems: list[str]
 ) -> tuple[dict[str, np.ndarray], np.ndarray]:
-    """The first ``n`` rows of ``/group/<names>`` and which rows every dataset could give.
+    """The first ``n`` rows of ``/group/<names>`` and which rows every dataset could give, under
+    ``names`` (a dataset stored under a former name is found by it, :func:`stored_name`).
 
     Reads each dataset whole; one whose checksum fails is read row by row, and its damaged rows
     are marked (one problem line per dataset).
     """
     ok = np.ones(n, dtype=bool)
     out = {}
-    for name in names:
+    for field in names:
+        name = stored_name(arc.h5[group], field)
         ds = arc.h5[group][name]
         try:
             with reading(arc.path, f"/{group}/{name}"):
-                out[name] = read_rows(ds, n)
+                out[field] = read_rows(ds, n)
             continue
         except ArchiveError:
             pass
@@ -147,7 +152,7 @@ def _readable_rows(
                 bad.append(i)
         ok[bad] = False
         problems.append(f"{len(bad)} damaged row(s) of /{group}/{name}")
-        out[name] = values
+        out[field] = values
     return out, ok
 
 

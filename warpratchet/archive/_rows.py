@@ -25,8 +25,9 @@ The ``/snapshots`` group, phase-space snapshots of a fixed random subsample of p
 
 The subsample (:func:`snapshot_indices`) is drawn once, from the run's seed and a salt of its
 own, and stored with the archive; every snapshot (:func:`snapshot_row`) holds those points'
-``x``, ``p`` mod 1, FTLE and ``A_n`` (Eqs. cpem, An); :func:`read_snapshots` returns the valid
-rows as :class:`Snapshots`.
+``x``, ``p`` mod 1, FTLE and finite-time acceleration ``A_n`` (Eqs. cpem, An);
+:func:`read_snapshots` returns the valid rows as :class:`Snapshots`, under today's names whatever
+names the file stores (:func:`~._format.stored_name`).
 """
 
 from __future__ import annotations
@@ -43,9 +44,18 @@ from h5py import h5s
 from .._files import dataset_bytes, ensure_space, h5_bytes, sync_h5
 from .._h5verify import chunk_past_end, first_line, read_rows, refresh
 from ..ensemble import STATE_FIELDS
+from ..errors import renamed_attribute
 from ..observables import finite_time_acceleration, lyapunov
 from ..sampling import salted_subsample
-from ._format import ROW_CHUNK, SLOTS, SNAPSHOT_FIELDS, TEXT_CHECKSUM, ArchiveError, text_checksum
+from ._format import (
+    ROW_CHUNK,
+    SLOTS,
+    SNAPSHOT_FIELDS,
+    TEXT_CHECKSUM,
+    ArchiveError,
+    stored_name,
+    text_checksum,
+)
 
 __all__ = [
     "reading",
@@ -359,8 +369,10 @@ class Snapshots:
         Position and momentum mod 1, both in ``[0, 1)`` (Eq. cpem on the torus).
     ftle : ndarray, shape (S, M)
         Finite-time Lyapunov exponent per iteration.
-    A : ndarray, shape (S, M)
-        Mean acceleration ``A_n`` of Eq. (An), per iteration.
+    finite_time_acceleration : ndarray, shape (S, M)
+        Each point's ``A_n`` of Eq. (An), per iteration
+        (:func:`~warpratchet.observables.finite_time_acceleration`; the ensemble's ``A`` is their
+        mean over the chaotic points).
     """
 
     steps: np.ndarray
@@ -368,7 +380,10 @@ class Snapshots:
     x: np.ndarray
     p: np.ndarray
     ftle: np.ndarray
-    A: np.ndarray
+    finite_time_acceleration: np.ndarray
+
+    #: The former name of :attr:`finite_time_acceleration` (DeprecationWarning).
+    A = renamed_attribute("Snapshots", "A", "finite_time_acceleration")
 
     def __len__(self) -> int:
         return int(self.steps.size)
@@ -387,7 +402,7 @@ def snapshot_row(live: dict[str, np.ndarray], indices: np.ndarray, step: int) ->
         "x": sub["x"],
         "p": sub["q"],  # p mod 1 is exactly q
         "ftle": lyapunov(sub, step),
-        "A": finite_time_acceleration(sub, step),
+        "finite_time_acceleration": finite_time_acceleration(sub, step),
     }
 
 
@@ -399,8 +414,10 @@ def read_snapshots(path: str, f: h5py.File, n: int) -> Snapshots:
         check_extent(path, g["indices"])
     fields = {"steps": valid_rows(path, g, "step", n), "indices": indices}
     for name in SNAPSHOT_FIELDS:
-        rows = valid_rows(path, g, name, n)
+        with reading(path, "/snapshots"):
+            stored = stored_name(g, name)
+        rows = valid_rows(path, g, stored, n)
         if n and rows.shape[1] != indices.size:
-            raise ArchiveError(f"{path}: /snapshots/{name} has shape {rows.shape}, expected ({n}, M)")
+            raise ArchiveError(f"{path}: /snapshots/{stored} has shape {rows.shape}, expected ({n}, M)")
         fields[name] = rows.reshape(n, indices.size)
     return Snapshots(**fields)

@@ -291,8 +291,9 @@ class ArchiveSink(Observer):
         state, series rows and snapshots up to the checkpoint, the checkpoint; see
         :mod:`warpratchet.archive._recovery`) and atomically put in place of the old file, so a
         kill during ``resume`` loses nothing either. A damaged checkpoint, snapshot, series row
-        or initial state is skipped and named in an :class:`ArchiveWarning`. A format v1 archive
-        is rebuilt in today's format.
+        or initial state is skipped and named in an :class:`ArchiveWarning`. An archive of an
+        earlier format (version 1, or 2 before minor version 2) is rebuilt in today's, with the
+        same values under today's names.
 
         Returns
         -------

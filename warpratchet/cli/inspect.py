@@ -46,7 +46,8 @@ def command(args: argparse.Namespace) -> int:
         emit_json(info)
         return 0
     p, s, v, last = info["params"], info["settings"], info["versions"], info["latest"]
-    print(f"{info['path']}: {info['format']} v{info['format_version']}, created {info['created']}")
+    version = f"v{info['format_version']}.{info['format_minor']}"
+    print(f"{info['path']}: {info['format']} {version}, created {info['created']}")
     if "knots" in p:
         print(f"  K = {p['K']}, knots = {p['knots']}, values = {p['values']}")
     else:
