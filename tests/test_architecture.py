@@ -47,10 +47,6 @@ EXCEPTIONS = {
     ("benchmarks.transport_overhead", "warpratchet.kernels.transport"): (
         "a kernel benchmark times the kernel module itself, below the public API"
     ),
-    ("benchmarks.orbits", "warpratchet.orbits.words"): (
-        "the benchmark times the brute-force word method against the enumeration; orbits.words "
-        "exists for that comparison and is no public API"
-    ),
 }
 
 
