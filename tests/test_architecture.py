@@ -40,14 +40,7 @@ ALIASES = {"warpratchet_viz": "viz"}
 NOT_PURE = {"warp", "h5py", "tqdm", "rerun", "matplotlib", "dask", "distributed"}
 
 #: (importer, imported) -> why the arrow stays although the front-end rule refuses it.
-EXCEPTIONS = {
-    ("benchmarks.indicators_overhead", "warpratchet.kernels.indicators"): (
-        "a kernel benchmark times the kernel module itself, below the public API"
-    ),
-    ("benchmarks.transport_overhead", "warpratchet.kernels.transport"): (
-        "a kernel benchmark times the kernel module itself, below the public API"
-    ),
-}
+EXCEPTIONS: dict[tuple[str, str], str] = {}
 
 
 def _name(path: Path) -> str:
