@@ -323,8 +323,16 @@ class Ensemble:
 
     #: Why the state cannot be trusted (set when an error stopped a chunk partway), else None.
     undefined: str | None = None
-    #: The threads of the run in progress (its launches and its history rows), else None.
     _run_pool: ThreadPoolExecutor | None = None
+
+    @property
+    def run_pool(self) -> ThreadPoolExecutor | None:
+        """The threads of the run in progress (CPU, more than one thread), else None.
+
+        Its launches are done whenever an observer is called, so an observer may run its
+        per-point work on them (the history rows and the transport spread do); it must not shut
+        them down: the run does, after the observers' ``end``."""
+        return self._run_pool
 
     def run(
         self,
@@ -392,7 +400,7 @@ class Ensemble:
             self._kernel.load(self.device, table=self.params.table)
             use_pool = wp.get_device(self.device).is_cpu and self.threads > 1 and self.points > 1
             pool = ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet") if use_pool else None
-            self._run_pool = pool  # the rows' summaries run on it too (_summary_on_threads)
+            self._run_pool = pool  # the observers' per-point work runs on it too (run_pool)
             run_chunks(self, self.step + steps, observers, chunk_steps, pool)
         finally:
             self._run_pool = None
@@ -430,8 +438,8 @@ class Ensemble:
         args = (self.views(), self.step, threshold, ftle)
         if self.threads < 2 or self.points < 4 * TREE_LEAF:  # a few leaves: not worth the threads
             done = summarize_with_variance(*args)
-        elif self._run_pool is not None:
-            done = summarize_with_variance(*args, pool=self._run_pool, batches=4 * self.threads)
+        elif self.run_pool is not None:
+            done = summarize_with_variance(*args, pool=self.run_pool, batches=4 * self.threads)
         else:
             with ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet-rows") as pool:
                 done = summarize_with_variance(*args, pool=pool, batches=4 * self.threads)
