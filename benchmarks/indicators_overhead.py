@@ -38,7 +38,6 @@ from throughput_contenders import Clock
 from warpratchet import Ensemble, MapParams, kernels
 from warpratchet.cli import positive_int
 from warpratchet.ensemble import default_threads
-from warpratchet.kernels.indicators import INDICATOR_FIELDS
 
 PARAMS = MapParams(K=3.0, b1=0.1, b2=0.01)
 #: The target: the indicators kernel at least this fraction of ``advance_map``'s throughput (throughput.py
@@ -78,7 +77,9 @@ def measure(init: dict, step0: int, threads: int, steps: int, rounds: int) -> di
     """Alternating timings of both kernels; ratios indicators / map per round."""
     runs = {
         "map": _launcher(kernels.advance_map, init, step0, 0, threads),
-        "indicators": _launcher(kernels.advance_map_indicators, init, step0, len(INDICATOR_FIELDS), threads),
+        "indicators": _launcher(
+            kernels.advance_map_indicators, init, step0, len(kernels.INDICATOR_FIELDS), threads
+        ),
     }
     same = all(
         np.array_equal(a.numpy().view(np.int64), b.numpy().view(np.int64))

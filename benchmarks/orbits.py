@@ -29,21 +29,32 @@ from collections import Counter, defaultdict
 import numpy as np
 
 from warpratchet import MapParams, theory
-from warpratchet.orbits import KINDS, enumerate_orbits, orbit_families
-from warpratchet.orbits.words import SYMBOLS, all_words, compose, fixed_points
+from warpratchet.orbits import (
+    KINDS,
+    all_words,
+    compose,
+    enumerate_orbits,
+    fixed_points,
+    orbit_families,
+    symbol_table,
+    word_kicks,
+)
 
 #: (K, b1, b2): two cases (Fig. 7's range at K = 3, Fig. 9's path at K = 2.99).
 CASES = [(3.0, 0.1, 0.01), (2.99, 0.25, 0.05)]
 
 
 def _brute_force_seconds(p: MapParams, m: int) -> float:
-    """Seconds for the float64 brute force over all 30^m words: compose, solve, test the first cell."""
+    """Seconds for the float64 brute force over all (10 n)^m words: compose, solve, test the
+    piece of the first symbol."""
     start = time.perf_counter()
-    words = all_words(m)
-    kicks = np.array([[p.K * p.l1, 0.0], [-p.K, p.K * p.c], [p.K * p.l2, -p.K * p.l2]])
+    words = all_words(p, m)
+    kicks = word_kicks(p)
     x, q, _ = fixed_points(*compose(words, kicks))
-    s = SYMBOLS[words[:, 0], 0]
-    np.count_nonzero((x >= 0) & (x < 1) & (q >= 0) & (q < 1) & ((s == 0) == (x <= p.b1)))
+    s = symbol_table(len(kicks))[words[:, 0], 0]
+    masks = p.table.select(x)
+    piece = np.select(masks, range(len(masks)), len(masks))
+    np.count_nonzero((x >= 0) & (x < 1) & (q >= 0) & (q < 1) & (s == piece))
     return time.perf_counter() - start
 
 
@@ -67,7 +78,7 @@ def _run_case(p: MapParams, max_period: int, budget: float, brute_max: int, log)
             "cpu_seconds": cpu,
             "nodes": result.nodes,
             "candidates": result.candidates,
-            "words": len(SYMBOLS) ** m,
+            "words": len(symbol_table(p.table.n_pieces)) ** m,
             "orbits": {kind: kinds.get(kind, 0) for kind in KINDS},
             "families": {"polygon": shapes.get("polygon", 0), "segment": shapes.get("segment", 0)},
             "elliptic_nu": sorted({o.nu for o in result.orbits if o.kind == "elliptic"}),

@@ -113,7 +113,7 @@ def measure_kernels(points: int, steps: int, repeat: int, block_rows: int = 8) -
     import warp as wp
 
     from warpratchet import kernels
-    from warpratchet.kernels.transport import BINS, advance_map_transport
+    from warpratchet.transport import BINS
 
     ensemble = _ready(Ensemble, points, 1)
     state, step0 = ensemble.state(), ensemble.step
@@ -130,12 +130,12 @@ def measure_kernels(points: int, steps: int, repeat: int, block_rows: int = 8) -
         wp.array(start),
         wp.zeros(3 * BINS, dtype=wp.int64),
     ]
-    advance_map_transport.load("cpu")
+    kernels.advance_map_transport.load("cpu")
     seconds: dict[str, list[float]] = {"plain": [], "transport": []}
     for _ in range(repeat):
         for name, kernel, state_arrays, extra_arrays, options in (
             ("plain", kernels.advance_map, plain, [], {}),
-            ("transport", advance_map_transport, transport, extra, {"block_rows": block_rows}),
+            ("transport", kernels.advance_map_transport, transport, extra, {"block_rows": block_rows}),
         ):
             begin = time.thread_time()
             kernel.launch("cpu", state_arrays, extra_arrays, step0, steps, PARAMS, **options)

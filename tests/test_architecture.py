@@ -40,18 +40,7 @@ ALIASES = {"warpratchet_viz": "viz"}
 NOT_PURE = {"warp", "h5py", "tqdm", "rerun", "matplotlib", "dask", "distributed"}
 
 #: (importer, imported) -> why the arrow stays although the front-end rule refuses it.
-EXCEPTIONS = {
-    ("benchmarks.indicators_overhead", "warpratchet.kernels.indicators"): (
-        "a kernel benchmark times the kernel module itself, below the public API"
-    ),
-    ("benchmarks.transport_overhead", "warpratchet.kernels.transport"): (
-        "a kernel benchmark times the kernel module itself, below the public API"
-    ),
-    ("benchmarks.orbits", "warpratchet.orbits.words"): (
-        "the benchmark times the brute-force word method against the enumeration; orbits.words "
-        "exists for that comparison and is no public API"
-    ),
-}
+EXCEPTIONS: dict[tuple[str, str], str] = {}
 
 
 def _name(path: Path) -> str:

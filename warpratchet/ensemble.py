@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Iterable, Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 
 import numpy as np
 import warp as wp
@@ -314,13 +314,25 @@ class Ensemble:
             else:
                 bounds = np.linspace(0, self.points, self.threads + 1).astype(int)
                 shards = [(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
-                for future in [pool.submit(self._launch, lo, hi, self.step, todo) for lo, hi in shards]:
+                futures = [pool.submit(self._launch, lo, hi, self.step, todo) for lo, hi in shards]
+                wait(futures)  # a failed shard's error waits until no shard writes the arrays
+                for future in futures:
                     future.result()
             self.step += todo
             steps -= todo
 
     #: Why the state cannot be trusted (set when an error stopped a chunk partway), else None.
     undefined: str | None = None
+    _run_pool: ThreadPoolExecutor | None = None
+
+    @property
+    def run_pool(self) -> ThreadPoolExecutor | None:
+        """The threads of the run in progress (CPU, more than one thread), else None.
+
+        Its launches are done whenever an observer is called, so an observer may run its
+        per-point work on them (the history rows and the transport spread do); it must not shut
+        them down: the run does, after the observers' ``end``."""
+        return self._run_pool
 
     def run(
         self,
@@ -388,8 +400,10 @@ class Ensemble:
             self._kernel.load(self.device, table=self.params.table)
             use_pool = wp.get_device(self.device).is_cpu and self.threads > 1 and self.points > 1
             pool = ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet") if use_pool else None
+            self._run_pool = pool  # the observers' per-point work runs on it too (run_pool)
             run_chunks(self, self.step + steps, observers, chunk_steps, pool)
         finally:
+            self._run_pool = None
             if sink is not None:
                 with deferred_interrupts():  # a second Ctrl-C does not cut the archive's close
                     sink.close()
@@ -413,7 +427,10 @@ class Ensemble:
     ) -> Summary | None:
         """:func:`~warpratchet.observables.summarize_with_variance` of the current state on this
         ensemble's threads (the variance kept for :meth:`known_variance`), or None to leave the
-        summary to ``summarize``: a GPU, more points than one summary chunk, a value not finite."""
+        summary to ``summarize``: a GPU, more points than one summary chunk, a value not finite.
+
+        During :meth:`run` the threads are the run's own, idle between its launches; outside a
+        run a pool lives for this summary only."""
         if self.points > SUMMARY_CHUNK or not wp.get_device(self.device).is_cpu or self.step < 1:
             return None
         if threshold is None:
@@ -421,6 +438,8 @@ class Ensemble:
         args = (self.views(), self.step, threshold, ftle)
         if self.threads < 2 or self.points < 4 * TREE_LEAF:  # a few leaves: not worth the threads
             done = summarize_with_variance(*args)
+        elif self.run_pool is not None:
+            done = summarize_with_variance(*args, pool=self.run_pool, batches=4 * self.threads)
         else:
             with ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet-rows") as pool:
                 done = summarize_with_variance(*args, pool=pool, batches=4 * self.threads)

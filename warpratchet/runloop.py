@@ -209,7 +209,8 @@ def run_chunks(
     chunk_steps : int
         Steps per regular chunk.
     pool : ThreadPoolExecutor or None
-        CPU shards' threads (shut down here, after the last launch finished).
+        CPU shards' threads (shut down here, after the observers' ``end``, which may still
+        compute a summary on them).
     """
     stoppers = [obs for obs in observers if callable(getattr(obs, "next_stop", None))]
     unseen = {id(obs): 0.0 for obs in observers}  # kernel seconds since each was last called
@@ -230,8 +231,7 @@ def run_chunks(
                 try:
                     ensemble._advance(stop - step, pool)
                 except BaseException as exc:
-                    if pool is not None:
-                        pool.shutdown(wait=True)  # nothing may still be writing the arrays
+                    # _advance returns or raises only after every shard has stopped writing.
                     if ensemble.step == step:
                         ensemble.undefined = (
                             f"an error stopped a chunk from step {step} to {stop} partway "
@@ -257,9 +257,11 @@ def run_chunks(
                             elapsed, unseen[id(obs)] = unseen[id(obs)], 0.0
                             obs.after_chunk(ensemble, elapsed)
         finally:
-            if pool is not None:
-                pool.shutdown(wait=True)
-            _end_all(ensemble, began)
+            try:
+                _end_all(ensemble, began)
+            finally:
+                if pool is not None:
+                    pool.shutdown(wait=True)
 
 
 #: Sinks that :meth:`Ensemble.run <warpratchet.ensemble.Ensemble.run>` opens by keyword

@@ -18,15 +18,20 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from warpratchet import MapParams, reference, theory
+from warpratchet.force import Force
 from warpratchet.orbits import (
     KINDS,
+    all_words,
+    compose,
     enumerate_orbits,
+    fixed_points,
     format_orbits,
     orbit_families,
     orbits_report,
     periodic_orbits,
+    symbol_table,
+    word_kicks,
 )
-from warpratchet.orbits.words import SYMBOLS, all_words, compose, fixed_points
 from warpratchet.sumrule import census
 
 U = 2.0**-53
@@ -76,9 +81,10 @@ def brute_force(p: MapParams, m: int) -> set[frozenset]:
     Degenerate words (``det(A - I) = 0``, families) are left out. Returns the cycles as
     frozensets of exact points.
     """
-    words = all_words(m)
+    words = all_words(p, m)
     n = len(words)
     kicks = np.array([[float(v) for v in kick] for kick in FractionMap(p).kicks])  # (3, 2)
+    symbols = symbol_table(len(kicks))
     right = 1.0 - p.b2
     keep = np.ones(n, dtype=bool)
     for r in range(m):  # rotation r starts with symbol r
@@ -88,7 +94,7 @@ def brute_force(p: MapParams, m: int) -> set[frozenset]:
             inverse_norm = (np.abs(A - np.eye(2)).sum(-1).max(-1) + 1.0) / np.abs(det)
         # z = -(A - I)^-1 b with A, b good to ~m u |A|, u |b| (z in the unit square):
         tol = 64 * U * inverse_norm * (np.abs(A).sum(-1).max(-1) + np.abs(b).max(-1) + 1)
-        s, k, j = SYMBOLS[words[:, r]].T
+        s, k, j = symbols[words[:, r]].T
         ka, kd = kicks[s, 0], kicks[s, 1]
         with np.errstate(invalid="ignore"):  # nan where det = 0, dropped below
             t = q + ka * x + kd
@@ -103,7 +109,7 @@ def brute_force(p: MapParams, m: int) -> set[frozenset]:
     fm = FractionMap(p)
     found = set()
     for word in words[keep]:
-        steps = [SYMBOLS[w] for w in word]
+        steps = [symbols[w] for w in word]
         A = [[Fraction(1), Fraction(0)], [Fraction(0), Fraction(1)]]
         b = [Fraction(0), Fraction(0)]
         for s, k, j in steps:
@@ -222,6 +228,22 @@ def test_brute_force_over_all_words_finds_the_same_orbits(p, periods):
     """Every isolated orbit of period <= 4 that any of the 30^m words yields, and no other."""
     for m in range(1, periods + 1):
         assert _cycles(periodic_orbits(p, m)) == brute_force(p, m), f"period {m}"
+
+
+def test_the_brute_force_takes_its_alphabet_from_the_forces_table():
+    """Another force (4 pieces): 40 symbols, and each isolated orbit the search finds is the
+    float64 fixed point of its own itinerary among all 40^m words."""
+    p = MapParams(3.0, table=Force.from_knots([0, 0.25, 0.75, 0.95], [-0.2, 0.3, 0, -0.66]))
+    assert symbol_table(4).shape == (40, 3) and len(word_kicks(p)) == 4
+    for m in (1, 2):
+        words = all_words(p, m)
+        assert words.shape == (40**m, m)
+        x, q, _ = fixed_points(*compose(words, word_kicks(p)))
+        orbits = [o for o in periodic_orbits(p, m) if o.residue != 0.0]
+        assert orbits, f"period {m}"
+        for o in orbits:
+            (row,) = np.flatnonzero((words == o.itinerary).all(axis=1))
+            assert (x[row], q[row]) == pytest.approx((o.x[0], o.p[0] % 1.0), abs=1e-9)
 
 
 @pytest.mark.parametrize("p", [K3, K299], ids=["K3", "K2.99"])

@@ -226,6 +226,33 @@ def test_history_rows_beside_spread_rows_are_a_plain_runs_bit_for_bit(monkeypatc
         assert np.asarray(rows[0][name]).tobytes() == np.asarray(rows[1][name]).tobytes(), name
 
 
+def test_a_transport_runs_spread_rows_use_the_runs_own_threads(monkeypatch):
+    """On 2 threads a transport run makes one pool, its launches': the spread rows and the history
+    rows run on it. The spread rows are those of a spread with a pool of its own, bit for bit."""
+    import warpratchet.ensemble
+    import warpratchet.transport.diffusion
+    from warpratchet import Ensemble
+
+    made = []
+
+    def pool(*args, **kwargs):
+        made.append(ThreadPoolExecutor(*args, **kwargs))
+        return made[-1]
+
+    for module in (warpratchet.ensemble, warpratchet.transport.diffusion):
+        monkeypatch.setattr(module, "ThreadPoolExecutor", pool)
+    rows = []
+    for shared in (True, False):
+        if not shared:  # as if outside Ensemble.run: the spread makes its own pool
+            monkeypatch.setattr(Ensemble, "run_pool", property(lambda self: None))
+        made.clear()
+        ens = TransportEnsemble.sample(MapParams(3.0, 0.1, 0.01), 3000, "strip", seed=4, threads=2)
+        ens.run(2500, [History()])
+        rows.append(ens.transport_state().spread)
+        assert len(made) == (1 if shared else 2) and len(rows[-1]) == len(spread_steps(0, 2500))
+    assert rows[0].tobytes() == rows[1].tobytes()
+
+
 def test_bytes_per_point_count_the_carry_and_a_spread_rows_arrays():
     """TransportEnsemble's memory check counts what grows with the points: state, carry and the
     full-size arrays of a spread row (measured here with tracemalloc, which sees NumPy's)."""

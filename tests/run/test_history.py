@@ -339,3 +339,33 @@ def test_a_runs_report_and_history_equal_those_of_summarize_and_the_reference_va
             report.pop(timing)
         reports.append(report)
     assert reports[0] == reports[1] and len(reports[0]["history"]["step"]) == len(history_steps(0, 2500))
+
+
+def test_one_pool_serves_a_runs_launches_and_its_rows_and_a_row_outside_a_run_has_its_own(monkeypatch):
+    """The history rows of a run on 2 threads are summarised on the pool of its launches (the only
+    pool the run makes); a summary outside a run makes a pool of its own. Bits as ``summarize``'s."""
+    import warpratchet.ensemble as module
+
+    monkeypatch.setattr(module, "TREE_LEAF", 128)  # many leaves: the rows go on the threads
+    made, used = [], []
+    real_pool, real_summarize = module.ThreadPoolExecutor, module.summarize_with_variance
+
+    def pool(*args, **kwargs):
+        made.append(real_pool(*args, **kwargs))
+        return made[-1]
+
+    def summarize_with_variance(*args, pool=None, **kwargs):
+        used.append(pool)
+        return real_summarize(*args, pool=pool, **kwargs)
+
+    monkeypatch.setattr(module, "ThreadPoolExecutor", pool)
+    monkeypatch.setattr(module, "summarize_with_variance", summarize_with_variance)
+    ens = Ensemble.sample(PARAMS, 3000, "strip", seed=4, threads=2)
+    history = History()
+    ens.run(2500, [history])
+    assert len(made) == 1 and len(used) == len(history.rows["step"]) > 10
+    assert all(p is made[0] for p in used)
+    assert ens.summary(warn=False) == summarize(ens.state(), ens.step)  # the last row's, cached
+    outside = ens.summary(threshold=0.05, warn=False)  # a new threshold: a new summary, no run
+    assert len(made) == 2 and used[-1] is made[1] and made[1] is not made[0]
+    assert outside == summarize(ens.state(), ens.step, 0.05)

@@ -127,6 +127,9 @@ class ArchiveSink(Observer):
         row, and a resume continues it (:attr:`history`). Pass it to ``Ensemble.run`` among the
         observers too, so that it records at its own steps (``warpratchet run`` and
         ``Ensemble.run(archive=...)`` do both).
+    how_to_continue : str, optional
+        What a refused write's message tells the user to do once there is space (the CLI: "run
+        the same command again to resume it"; default: how to continue in Python).
 
     Raises
     ------
@@ -153,6 +156,7 @@ class ArchiveSink(Observer):
         chunk_steps: int | None = None,
         threshold_rule: str = "strict",
         history: History | None = None,
+        how_to_continue: str | None = None,
     ) -> None:
         path = os.fspath(path)
         if not path:
@@ -212,6 +216,7 @@ class ArchiveSink(Observer):
                 os.close(old_fd)
         self.checkpoint_step = ensemble.step
         self._last_snapshot = ensemble.step
+        self.how_to_continue = how_to_continue
 
     def _build(
         self,
@@ -283,7 +288,12 @@ class ArchiveSink(Observer):
 
     @classmethod
     def resume(
-        cls, path: str | os.PathLike, *, threads: int | None = None, device: str | None = None
+        cls,
+        path: str | os.PathLike,
+        *,
+        threads: int | None = None,
+        device: str | None = None,
+        how_to_continue: str | None = None,
     ) -> tuple[ArchiveSink, Ensemble]:
         """Reopen an archive for appending, from its newest good checkpoint.
 
@@ -293,7 +303,7 @@ class ArchiveSink(Observer):
         kill during ``resume`` loses nothing either. A damaged checkpoint, snapshot, series row
         or initial state is skipped and named in an :class:`ArchiveWarning`. An archive of an
         earlier format (version 1, or 2 before minor version 2) is rebuilt in today's, with the
-        same values under today's names.
+        same values under today's names. ``how_to_continue`` as :class:`ArchiveSink` takes it.
 
         Returns
         -------
@@ -332,6 +342,7 @@ class ArchiveSink(Observer):
             os.close(old_fd)
         sink.checkpoint_step = old.step
         sink._last_snapshot = old.step
+        sink.how_to_continue = how_to_continue
         return sink, old.ensemble
 
     # -- the observer -----------------------------------------------------------------------------

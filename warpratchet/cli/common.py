@@ -287,6 +287,8 @@ def print_warnings(caught: Iterable[Any]) -> None:
 FASTEST_CPU_THREAD, FASTEST_GPU = 1e10, 1e12
 #: Estimated seconds (at the fastest speeds) above which ``--long`` is required: a day.
 LONG_SECONDS = 86400.0
+#: What a refused archive write tells a CLI user to do once there is space.
+HOW_TO_CONTINUE = "run the same command again to resume it"
 
 
 def add_long_flag(parser: Any) -> None:

@@ -13,6 +13,7 @@ import warnings
 
 from ..spec import LEGACY_NAMES
 from .common import (
+    HOW_TO_CONTINUE,
     ProgressBar,
     UsageError,
     add_long_flag,
@@ -104,9 +105,10 @@ def command(args: argparse.Namespace) -> int:
         more = args.steps - start_step
         what = f"{archived['points']} points x {more} more steps"
         check_duration(args, what, archived["points"] * more, args.threads, args.device)
-        sink, ensemble = ArchiveSink.resume(args.archive, threads=args.threads, device=args.device)
+        sink, ensemble = ArchiveSink.resume(
+            args.archive, threads=args.threads, device=args.device, how_to_continue=HOW_TO_CONTINUE
+        )
     print_warnings(caught)
-    sink.how_to_continue = "run the same command again to resume it"
     from ..history import History
 
     # An archive written before histories existed: this session's rows only, not archived.

@@ -17,6 +17,7 @@ from typing import Any
 
 from ..spec import RunSpec
 from .common import (
+    HOW_TO_CONTINUE,
     ProgressBar,
     add_long_flag,
     check_duration,
@@ -72,13 +73,16 @@ def _archive(args: argparse.Namespace, spec: RunSpec, plan: dict[str, Any], hist
     if "resume" in plan:  # the same command again: continue where the archive stands
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", ArchiveWarning)
-            sink, ensemble = ArchiveSink.resume(args.out, threads=spec.threads, device=spec.device)
+            sink, ensemble = ArchiveSink.resume(
+                args.out, threads=spec.threads, device=spec.device, how_to_continue=HOW_TO_CONTINUE
+            )
         print_warnings(caught)
         _say(args, f"continuing {args.out} from its checkpoint at step {ensemble.step} to step {spec.steps}")
         # An archive written before histories existed: record this session's rows, not archived.
         return sink, ensemble, sink.history or history
     ensemble = _sample(args, spec)
-    return ArchiveSink(args.out, ensemble, history=history, **plan), ensemble, history
+    sink = ArchiveSink(args.out, ensemble, history=history, how_to_continue=HOW_TO_CONTINUE, **plan)
+    return sink, ensemble, history
 
 
 def _say(args: argparse.Namespace, message: str) -> None:
@@ -127,7 +131,6 @@ def command(args: argparse.Namespace) -> int:
         sink, ensemble, history = _archive(args, spec, plan, history)
         observers.append(history)
         if sink is not None:
-            sink.how_to_continue = "run the same command again to resume it"
             observers.append(sink)
             chunk_steps = sink.chunk_steps
     else:

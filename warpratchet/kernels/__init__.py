@@ -9,7 +9,9 @@ the ensemble layer shards points over one Python thread per core.
   CUDA runs);
 * :mod:`.advance`: the step loop, written once, and kernel variants built on it (hooks after each
   step and after each renormalisation check; a plain run pays nothing for them);
-* :mod:`.map`, :mod:`.indicators`: ``advance_map`` and ``advance_map_indicators`` (MEGNO, FLI);
+* :mod:`.map`, :mod:`.indicators`, :mod:`.transport`: ``advance_map``, ``advance_map_indicators``
+  (MEGNO, FLI; its accumulators :data:`INDICATOR_FIELDS`) and ``advance_map_transport`` (return
+  times and flights);
 * :mod:`.logarithm`: ``fdlog``, the indicators' logarithm, the same bits on every body;
 * :mod:`.runtime`: Warp start-up and the compiler options.
 
@@ -27,14 +29,17 @@ reaches against the hand-vectorised C of its instruction set, are in ``benchmark
 """
 
 from .advance import MAX_LAUNCH_STEPS, AdvanceKernel, Variant, advance_kernel, launch_dim
-from .indicators import advance_map_indicators
+from .indicators import INDICATOR_FIELDS, advance_map_indicators
 from .map import advance_map
 from .runtime import CPU_ISA, init_warp
 from .step import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD, Lanes
+from .transport import advance_map_transport
 
 __all__ = [
     "advance_map",
     "advance_map_indicators",
+    "advance_map_transport",
+    "INDICATOR_FIELDS",
     "RENORM_THRESHOLD",
     "RENORM_CHECK_EVERY",
     "INTERLEAVE",

@@ -80,8 +80,8 @@ class _Accumulators:
 @wp.struct
 class _CpuAccumulators:
     """The CPU hooks' per-thread state: a few scalars. Their buffer and byte trackers live in the
-    launch's ``scratch`` array, not here: Warp zero-initialises a thread's struct, and with the
-    4.6 KB buffer inside that cost ~10 ms per launch of 10^6 points (a tenth of a default chunk)."""
+    launch's ``scratch`` array, not here: Warp zero-initialises a thread's struct, and a 4.6 KB
+    buffer inside it makes every launch pay for that (:mod:`.transport_cpu`)."""
 
     arrays: _Arrays  # carry (read by the first decode, written by the store), counts, scratch
     first: int

@@ -10,22 +10,11 @@ and every row goes through the loop. A launch with ``block_rows=1`` takes the ro
 any CPU, so the tests check both against the NumPy twin, count for count
 (``tests/analyses/test_transport.py``).
 
-Why 8 rows, not 16 (measured, 10^6 points at K = 3, 1 thread, launches of 200 steps, one process,
-the block size chosen per launch): 16-row blocks (two 8-row transposes interleaved into 16 bits a
-lane, vpopcntw, the same bit tricks on 512-bit vectors; exact against the twin) decode 16 rows in
-~310 instructions against ~209 for 8, but on this Zen 4-class CPU a 512-bit operation takes two
-256-bit slots, so per row they cost as much: best launch 177 ms (16) vs 171-176 ms (8), plain
-160 ms, the same kernel with its decoding skipped 154 ms. Bit-plane work costs the same per bit
-at any block size; only fewer operations per block would pay.
-
-Where a block's time goes (2026-11-26, same set-up, 20 launches a side, one process): the
-decoding is ~10% of a launch (median pair plain/transport 0.97; with the decoding skipped 1.075,
-i.e. the recording alone costs nothing measurable: the plain loop has slots to spare). A block
-is ~210 instructions (``objdump`` of the block loop), about 8 cycles a row. Bit
-reversal is one GF2P8AFFINEQB with the reversal matrix (LLVM already lowered the shift-and-mask
-form to it); the run length after the last boundary reuses the reversed block that finds that
-boundary (5 instructions fewer a block: 215 -> 210; the scratch guard's check at each decode
-makes it 211).
+Why blocks of 8 rows: 16-row blocks (two 8-row transposes interleaved, 512-bit bit tricks) take
+fewer instructions per row, but a 512-bit operation takes two 256-bit slots on the CPUs measured,
+so per row they cost as much; bit-plane work costs the same per bit at any block size. The
+measurements, and where a block's time goes, are in ``benchmarks/README.md`` ("The transport
+decoder's blocks of 8 rows").
 """
 
 __all__ = ["BLOCK_CPU", "BLOCK_CODED_CPU"]

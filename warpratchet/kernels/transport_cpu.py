@@ -29,10 +29,10 @@ converts back, as lane vectors. Every count equals the portable hooks' (``tests/
 
 Where the state lives: the buffer and the trackers in the launch's scratch array
 (:data:`SCRATCH_BYTES`, shared by the launch's threads, which Warp runs one after the other on
-the CPU), a few scalars in the thread's accumulator struct. Warp zero-initialises that struct
-for every thread; with the 4.6 KB buffer in it, that and the scalar carry conversion cost ~12 ms
-per launch of 10^6 points, ~15% of a launch of the default chunk; now ~2 ms. A guard in the
-scratch (its owner and conflict words) turns threads that share it at once into an error.
+the CPU), a few scalars in the thread's accumulator struct: Warp zero-initialises that struct
+for every thread, which for a 4.6 KB buffer costs a noticeable part of a launch
+(``benchmarks/README.md``, "The record of transport_overhead.py"). A guard in the scratch (its
+owner and conflict words) turns threads that share it at once into an error.
 """
 
 from .step import INTERLEAVE

@@ -20,7 +20,10 @@ composes to ``z -> A z + b`` with ``A = DM^m``, and a point of exact period ``m`
 
 Public API: :func:`enumerate_orbits` (orbits, families and the search's cost),
 :func:`periodic_orbits`, :func:`orbit_families`, :func:`orbits_report` (the CLI's JSON object)
-and :func:`format_orbits` (its text form). Pure: no Warp, no I/O.
+and :func:`format_orbits` (its text form); and a brute-force cross-check of the search
+(:mod:`~warpratchet.orbits.words`): :func:`all_words` of the force's alphabet, each word's affine
+map (:func:`compose`, with :func:`word_kicks`) and its float64 fixed point
+(:func:`fixed_points`), the symbols of the codes (:func:`symbol_table`). Pure: no Warp, no I/O.
 """
 
 from .enumerate import (
@@ -34,6 +37,7 @@ from .enumerate import (
     periodic_orbits,
 )
 from .report import format_orbits, orbits_report
+from .words import all_words, compose, fixed_points, symbol_table, word_kicks
 
 __all__ = [
     "KINDS",
@@ -46,4 +50,9 @@ __all__ = [
     "orbit_families",
     "orbits_report",
     "format_orbits",
+    "all_words",
+    "compose",
+    "fixed_points",
+    "symbol_table",
+    "word_kicks",
 ]

@@ -29,6 +29,7 @@ from fractions import Fraction
 __all__ = [
     "PIECES",
     "K_RANGE",
+    "alphabet",
     "encode",
     "decode",
     "winding",
@@ -53,6 +54,12 @@ def decode(symbol: int) -> tuple[int, int, int]:
     """``(piece, k, j)`` of a symbol code (inverse of :func:`encode`)."""
     piece, rest = divmod(symbol, 10)
     return piece, rest // 2 - 2, rest % 2
+
+
+def alphabet(pieces: int) -> tuple[int, ...]:
+    """Every symbol code of a force of ``pieces`` pieces, in increasing order: ``(s, k, j)`` for
+    each piece ``s``, each ``k`` of :data:`K_RANGE` and ``j`` in ``{0, 1}`` (``10 pieces`` codes)."""
+    return tuple(encode(s, k, j) for s in range(pieces) for k in K_RANGE for j in (0, 1))
 
 
 def winding(word: Sequence[int]) -> int:

@@ -1,8 +1,17 @@
-"""All ``30^m`` itineraries at once, in float64: the brute force the tree search replaces.
+"""All itineraries of ``m`` symbols at once, in float64: a brute-force cross-check of the search.
 
-For cost comparisons (``benchmarks/orbits.py``) and as the prefilter of the brute-force check in
-``tests/analyses/test_orbits.py``; nothing here is exact, and :func:`~warpratchet.orbits.enumerate_orbits`
-does not use it. Pure: no Warp, no I/O.
+The tree search of :func:`~warpratchet.orbits.enumerate_orbits` visits only the itineraries
+with a non-empty cell; the brute force composes every word of the force's alphabet
+(``(10 n)^m`` words for a force of ``n`` pieces, ``30^m`` for Eq. fx) and solves each for its
+fixed point. It is a check a reader can run independently of the search's cells and exact
+arithmetic (the prefilter of the brute-force test of the orbit search), and the yardstick of
+its cost (``benchmarks/orbits.py``). Nothing here is exact: a fixed point in float64 is a
+candidate, which exact arithmetic must confirm.
+
+The alphabet is that of :mod:`~warpratchet.orbits.symbols`, built from the force's piece table:
+word entries are symbol codes, and row ``c`` of :func:`symbol_table` is ``decode(c)``.
+
+Pure: no Warp, no I/O.
 """
 
 from __future__ import annotations
@@ -11,27 +20,45 @@ import itertools
 
 import numpy as np
 
-__all__ = ["SYMBOLS", "all_words", "compose", "fixed_points"]
+from ..params import MapParams
+from .symbols import alphabet, decode
 
-#: ``(piece, k, j)`` of each symbol code, shape ``(30, 3)`` (:mod:`~warpratchet.orbits.symbols`).
-SYMBOLS = np.array(list(itertools.product(range(3), range(-2, 3), range(2))))
+__all__ = ["symbol_table", "all_words", "word_kicks", "compose", "fixed_points"]
 
 
-def all_words(m: int) -> np.ndarray:
-    """Every word of ``m`` symbol codes, shape ``(30^m, m)``."""
-    return np.array(list(itertools.product(range(len(SYMBOLS)), repeat=m)))
+def symbol_table(pieces: int) -> np.ndarray:
+    """``(piece, k, j)`` of the symbol codes of a force of ``pieces`` pieces, shape ``(10 pieces, 3)``:
+    row ``c`` is :func:`~warpratchet.orbits.symbols.decode` of the code ``c``."""
+    codes = alphabet(pieces)
+    table = np.zeros((max(codes) + 1, 3), dtype=np.int64)
+    table[list(codes)] = [decode(code) for code in codes]
+    return table
+
+
+def all_words(params: MapParams, m: int) -> np.ndarray:
+    """Every word of ``m`` symbol codes of the force of ``params``, shape ``((10 n)^m, m)``."""
+    codes = alphabet(params.table.n_pieces)
+    return np.array(list(itertools.product(codes, repeat=m)), dtype=np.int64).reshape(-1, m)
+
+
+def word_kicks(params: MapParams) -> np.ndarray:
+    """``(K a_s, K d_s)`` per piece ``s`` (``K f = K a_s x + K d_s``), rounded to float64, shape
+    ``(n, 2)``: the force's exact kicks (:meth:`~warpratchet.force.Force.exact_kicks`)."""
+    return np.array(params.table.exact_kicks(params.K), dtype=np.float64)
 
 
 def compose(words: np.ndarray, kicks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``z -> A z + b`` of each word (applied left to right), shapes ``(n, 2, 2)`` and ``(n, 2)``.
+    """``z -> A z + b`` of each word (applied left to right), shapes ``(w, 2, 2)`` and ``(w, 2)``.
 
-    ``kicks`` has shape ``(3, 2)``: ``(K a_s, K d_s)`` per piece, ``K f = K a_s x + K d_s``.
+    ``kicks`` has shape ``(n, 2)``: ``(K a_s, K d_s)`` per piece (:func:`word_kicks`, or any
+    other evaluation of the same force); the words' codes belong to a force of ``n`` pieces.
     """
+    table = symbol_table(len(kicks))
     n = len(words)
     A = np.broadcast_to(np.eye(2), (n, 2, 2)).copy()
     b = np.zeros((n, 2))
-    for column in words.T:
-        s, k, j = SYMBOLS[column].T
+    for column in np.asarray(words).T:
+        s, k, j = table[column].T
         ka, kd = kicks[s, 0], kicks[s, 1]
         S = np.stack([np.stack([1 + ka, np.ones(n)], -1), np.stack([ka, np.ones(n)], -1)], -2)
         A = S @ A

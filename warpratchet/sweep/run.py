@@ -84,7 +84,7 @@ def run_point(
         One row, keys :data:`~warpratchet.sweep.file.ROW_FIELDS` (per-iteration A and FTLE,
         the convergence verdict of the run's :class:`~warpratchet.history.History`: robust
         standard error, drift of A between n/2 and n, verdict; seconds of wall time, including
-        the history's ~1%).
+        the history's rows).
 
     Raises
     ------

@@ -121,18 +121,22 @@ def spread_moments(
 class Spread(Observer):
     """Records :func:`spread_moments` of ``ensemble`` at :func:`spread_steps` (module docstring).
 
-    The rows are computed on as many threads as the ensemble runs on (the run waits for them).
+    The rows are computed on as many threads as the ensemble runs on (the run waits for them):
+    the run's own (:attr:`~warpratchet.ensemble.Ensemble.run_pool`), else a pool of its own.
     """
 
     def __init__(self, ensemble: Any) -> None:
         self.ensemble = ensemble
         self._pending: list[int] = []
         self._pool: ThreadPoolExecutor | None = None
+        self._own_pool = False
 
     def begin(self, ensemble: Any, target_step: int) -> None:
         self._pending = spread_steps(ensemble.step, target_step)
         threads = getattr(ensemble, "threads", 1)
-        if self._pending and threads > 1:
+        self._pool = getattr(ensemble, "run_pool", None)
+        self._own_pool = self._pool is None and bool(self._pending) and threads > 1
+        if self._own_pool:
             self._pool = ThreadPoolExecutor(threads, thread_name_prefix="warpratchet-spread")
 
     def next_stop(self, step: int) -> int | None:
@@ -150,6 +154,6 @@ class Spread(Observer):
             ensemble.record_spread(step, moments, ftle)
 
     def end(self, ensemble: Any) -> None:
-        if self._pool is not None:
+        if self._own_pool:
             self._pool.shutdown()
-            self._pool = None
+        self._pool, self._own_pool = None, False
