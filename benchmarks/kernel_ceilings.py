@@ -12,6 +12,12 @@ second and per CPU second (the rate over the process's CPU time: what a row did 
 got). The C is the map and tangent only, so it is the ceiling of ``advance_map``; the other two
 kernels do more work per step (the targets: 0.8 for ``advance_map``, 0.7 for the others).
 
+Where the time of a kernel's launches goes, per round: each thread's rate per second of its own
+CPU (the launches' point-steps over the CPU seconds of the threads that ran them: a kernel whose
+threads slow each other down has a lower one on 2 threads than on 1), and the slowest shard's wall
+time over the launches' (below 1: time outside the shards, serial work or a pool thread waiting to
+run; a shard slower than the other shows here too).
+
 The C's end state after the first round must equal the map kernel's bit for bit, and the three
 kernels' orbits each other's (the script exits with status 1 otherwise).
 
@@ -53,6 +59,19 @@ def _ensemble(cls: type[Ensemble], points: int, threads: int, pool) -> Ensemble:
     return ens
 
 
+def _clock_shards(ens: Ensemble, log: list[tuple[int, float, float]]) -> None:
+    """Log each launch of ``ens`` (one per shard and thread): its point-steps, wall seconds and
+    the CPU seconds of the thread that ran it."""
+    launch = ens._launch
+
+    def timed(lo: int, hi: int, step0: int, steps: int) -> None:
+        wall, cpu = time.perf_counter(), time.thread_time()
+        launch(lo, hi, step0, steps)
+        log.append(((hi - lo) * steps, time.perf_counter() - wall, time.thread_time() - cpu))
+
+    ens._launch = timed
+
+
 def _timed(work) -> tuple[float, float]:
     wall, cpu = time.perf_counter(), time.process_time()
     work()
@@ -67,6 +86,11 @@ def measure(points: int, steps: int, rounds: int, threads: int, ceiling) -> dict
     start = {name: start[name] for name in contenders.EVOLVED}
     step0 = ensembles["map"].step
     rates: dict[str, list[tuple[float, float]]] = {name: [] for name in ["c", *KERNELS]}
+    shards: dict[str, list[tuple[int, float, float]]] = {name: [] for name in KERNELS}
+    thread_rates: dict[str, list[float]] = {name: [] for name in KERNELS}
+    balance: dict[str, list[float]] = {name: [] for name in KERNELS}
+    for name, ens in ensembles.items():
+        _clock_shards(ens, shards[name])
     c_state = None
     for r in range(rounds):
         order = ["c", *KERNELS] if r % 2 == 0 else [*reversed(KERNELS), "c"]
@@ -76,7 +100,10 @@ def measure(points: int, steps: int, rounds: int, threads: int, ceiling) -> dict
                 c_state = c_state or state
                 wall, cpu = timing.seconds, timing.cpu_seconds
             else:
+                shards[name].clear()
                 wall, cpu = _timed(lambda e=ensembles[name]: e._advance(steps, pool))
+                thread_rates[name].append(sum(s[0] for s in shards[name]) / sum(s[2] for s in shards[name]))
+                balance[name].append(max(s[1] for s in shards[name]) / wall)
             rates[name].append((points * steps / wall, points * steps * threads / cpu))
         if r == 0:
             first = ensembles["map"].state()
@@ -92,6 +119,8 @@ def measure(points: int, steps: int, rounds: int, threads: int, ceiling) -> dict
         pairs = list(zip(rates[name], rates["c"], strict=True))
         row[f"{name}_vs_c_wall"] = [a[0] / b[0] for a, b in pairs]
         row[f"{name}_vs_c_cpu"] = [a[1] / b[1] for a, b in pairs]
+        row[f"{name}_thread_rate"] = thread_rates[name]
+        row[f"{name}_slowest_shard"] = balance[name]
     row["bitwise_equal"] = bool(same_c and same_orbit)
     return row
 
@@ -128,6 +157,13 @@ def main(argv: list[str] | None = None) -> int:
                 print(
                     f"  {name:>10} / C: per wall second {min(wall):.2f}-{max(wall):.2f},"
                     f" per CPU second {min(cpu):.2f}-{max(cpu):.2f} (target {TARGETS[name]})"
+                )
+            for name in KERNELS:
+                rate, slowest = row[f"{name}_thread_rate"], row[f"{name}_slowest_shard"]
+                print(
+                    f"  {name:>10}: M point-steps per second of each thread's CPU {min(rate) / 1e6:.0f}"
+                    f"-{max(rate) / 1e6:.0f}; slowest shard's wall / the launches' {min(slowest):.2f}"
+                    f"-{max(slowest):.2f}"
                 )
             print(f"  bitwise equal: {'yes' if row['bitwise_equal'] else 'NO'}")
     return 0 if all(row["bitwise_equal"] for row in result) else 1

@@ -205,8 +205,10 @@ def test_kernel_ceilings_benchmark_runs_and_every_kernel_follows_the_c():
         assert row["bitwise_equal"] is True
         assert all(rate > 0 for rate in row["best_rate"].values())
         for name in report["targets"]:
-            for key in (f"{name}_vs_c_wall", f"{name}_vs_c_cpu"):
+            for key in (f"{name}_vs_c_wall", f"{name}_vs_c_cpu", f"{name}_thread_rate"):
                 assert len(row[key]) == report["rounds"] and all(r > 0 for r in row[key])
+            # the slowest shard runs inside the timed launches
+            assert all(0 < r <= 1 for r in row[f"{name}_slowest_shard"])
 
 
 def test_end_to_end_benchmark_runs_and_reports_the_kernels_numbers():

@@ -346,7 +346,8 @@ const v_t one = 1.0, zero = 0.0;
 #: One step on the local lane vectors ``x, q, w, dx, dp``; leaves the step's facts in the locals
 #: ``gain`` and ``in_strip`` (dropped by the compiler where nothing reads them). ``@FORCE@`` (which
 #: defines ``kick`` and ``k_slope``) and ``@STRIP@`` (``in_strip``) are the force's generated C++
-#: (:func:`warpratchet.force.cpp_source`).
+#: (:func:`warpratchet.force.cpp_source`); ``gain`` goes at ``@GAIN_EARLY@`` or ``@GAIN_LATE@``
+#: (:func:`_arithmetic`).
 _STEP_ARITHMETIC_CPU_TEMPLATE = """
 @FORCE@const v_t t = q + kick;
 const v_t fl = __builtin_elementwise_floor(t);
@@ -354,7 +355,7 @@ q = t - fl;
 const auto wrap = q >= one;
 q = wrap ? zero : q;
 const v_t lift = wrap ? one : zero;
-const v_t w_fl = w + fl;
+@GAIN_EARLY@const v_t w_fl = w + fl;
 w = w_fl + lift;
 x = x + q;
 /* x - (x >= 1 ? 1 : 0): x - 0.0 is x (x >= 0), so these are the bits of the choice, with a mask
@@ -364,8 +365,7 @@ x = x - unit;
 const v_t k_slope_dx = k_slope * dx;
 dp = dp + k_slope_dx;
 dx = dx + dp;
-const v_t gain = fl + lift;
-@STRIP@"""
+@GAIN_LATE@@STRIP@"""
 
 _STORE_STATE_CPU = """
 __builtin_memcpy(&s.x, &x, sizeof(v_t));
@@ -376,13 +376,29 @@ __builtin_memcpy(&s.dp, &dp, sizeof(v_t));
 """
 
 
+_GAIN = "const v_t gain = fl + lift;\n"
+
+
+def _arithmetic(force: Force, early_gain: bool = False) -> str:
+    """The step's C++ for ``force``. ``early_gain``: ``gain`` formed as soon as ``fl`` and ``lift``
+    exist, which then die there; a loop that reads ``gain`` at the step's end would otherwise keep
+    both live through the rest of the step, and with 16 AVX2 registers they are spilled (the
+    same value either way)."""
+    force_code, strip_code = cpp_source(force)
+    return (
+        _STEP_ARITHMETIC_CPU_TEMPLATE.replace("@FORCE@", force_code)
+        .replace("@STRIP@", strip_code)
+        .replace("@GAIN_EARLY@", _GAIN if early_gain else "")
+        .replace("@GAIN_LATE@", "" if early_gain else _GAIN)
+    )
+
+
 def _step_cpu_sources(force: Force) -> tuple[str, str]:
     """C++ of the CPU ``step`` (one iteration, facts kept) and ``steps`` (``count`` iterations
     with the lanes in local vectors throughout: the loop holds no stores, so the map's constants
     are computed once, outside it, and nothing but register pressure sends a lane vector to
     memory; the facts are not kept) of ``force``."""
-    force_code, strip_code = cpp_source(force)
-    arithmetic = _STEP_ARITHMETIC_CPU_TEMPLATE.replace("@FORCE@", force_code).replace("@STRIP@", strip_code)
+    arithmetic = _arithmetic(force)
     step = (
         VECTOR_TYPES
         + _LOAD_STATE_CPU
@@ -402,8 +418,9 @@ def cpu_steps_source(force: Force, each: str = "", before: str = "", after: str 
     with ``each`` after every iteration (it sees the locals of the step, ``gain`` and ``in_strip``
     among them), ``before`` ahead of the loads and ``after`` behind the stores: a variant's
     per-step work inside the loop, so that the lanes stay in registers between two checks."""
-    force_code, strip_code = cpp_source(force)
-    arithmetic = _STEP_ARITHMETIC_CPU_TEMPLATE.replace("@FORCE@", force_code).replace("@STRIP@", strip_code)
+    # A loop that reads the step's facts gets the gain early (_arithmetic); one that does not (the
+    # plain map, the indicators) keeps the source it has, the gain dropped as dead code.
+    arithmetic = _arithmetic(force, early_gain=bool(each))
     return (
         VECTOR_TYPES
         + before
