@@ -419,3 +419,80 @@ def test_out_of_a_transport_run_holds_the_merged_transport_group(client, tmp_pat
     assert np.array_equal(state.spread_steps, expected.spread_steps)
     assert exact(state.spread) == exact(expected.spread)
     assert verify_archive(out)[0] == []
+
+
+# -- snapshots and --force -----------------------------------------------------------------------------
+SNAPSHOT_EVERY = 1500
+
+
+def single_machine_archive(path, snapshot_points: int) -> None:
+    """The single machine's archive of SPEC with snapshots, as ``warpratchet run --out`` writes it."""
+    from warpratchet.archive import ArchiveSink
+
+    ensemble = Ensemble.sample(SPEC.params, SPEC.points, SPEC.init, SPEC.seed, threads=2)
+    sink = ArchiveSink(
+        path, ensemble, snapshot_every=SNAPSHOT_EVERY, snapshot_points=snapshot_points,
+        chunk_steps=SPEC.chunk_steps, threshold=SPEC.threshold, threshold_rule=SPEC.threshold_rule,
+    )  # fmt: skip
+    try:
+        ensemble.run(SPEC.steps, [sink], chunk_steps=sink.chunk_steps)
+    finally:
+        sink.close()
+
+
+def snapshot_datasets(path) -> dict:
+    """Every dataset of ``/snapshots``: dtype, shape, dimension scales, units and long name, bits."""
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        g = f["snapshots"]
+        return {
+            name: (
+                ds.dtype.str,
+                ds.shape,
+                [[scale.name for scale in dim.values()] for dim in ds.dims],
+                {k: ds.attrs[k] for k in ("units", "long_name")},
+                ds[()].tobytes(),
+            )  # fmt: skip
+            for name, ds in g.items()
+        }
+
+
+@pytest.mark.parametrize("shards, snapshot_points", [(1, 150), (2, 150), (3, 150), (7, 5)])
+def test_out_exposes_the_single_machines_snapshots_bit_for_bit(cluster, tmp_path, shards, snapshot_points):
+    """With 150 points every shard boundary cuts the subsample; with 7 shards and 5 points some
+    shards hold none of it."""
+    from warpratchet import open_archive
+    from warpratchet.archive import verify_archive
+    from warpratchet.cli import main
+
+    single, out = tmp_path / "single.h5", tmp_path / "run.h5"
+    single_machine_archive(single, snapshot_points)
+    if shards == 1:  # one shard holds the whole ensemble: a worker without the memory limit
+        with (
+            distributed.LocalCluster(n_workers=1, processes=False, dashboard_address=":0") as whole,
+            distributed.Client(whole) as client,
+        ):
+            run_sharded(
+                SPEC, client, 1, out=out, snapshot_every=SNAPSHOT_EVERY, snapshot_points=snapshot_points
+            )
+    else:
+        with distributed.Client(cluster) as client:
+            run_sharded(
+                SPEC, client, shards, out=out, snapshot_every=SNAPSHOT_EVERY, snapshot_points=snapshot_points
+            )
+    expected = snapshot_datasets(single)
+    assert snapshot_datasets(out) == expected and len(expected) > 2
+    with open_archive(single) as arc:
+        reference, settings, xr = arc.snapshots, arc.settings, arc.to_xarray("snapshots")
+    with open_archive(out) as arc:
+        snapshots = arc.snapshots
+        assert {k: arc.settings[k] for k in ("snapshot_every", "snapshot_points")} == {
+            k: settings[k] for k in ("snapshot_every", "snapshot_points")
+        }
+        ds = arc.to_xarray("snapshots")
+    assert list(snapshots.steps) == [1500, 3000] and snapshots.indices.size == snapshot_points
+    assert exact(snapshots.__dict__) == exact(reference.__dict__)
+    assert ds.sizes == xr.sizes and all(exact(ds[k].values) == exact(xr[k].values) for k in xr.variables)
+    assert verify_archive(out)[0] == []
+    assert main(["inspect", str(out)]) == 0 and main(["verify", str(out)]) == 0
