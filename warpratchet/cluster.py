@@ -71,6 +71,7 @@ __all__ = [
     "shard_bounds",
     "shard_bytes",
     "shard_paths",
+    "snapshot_file",
     "run_shard",
     "run_sharded",
 ]
@@ -890,6 +891,10 @@ def run_sharded(
                 # the file being replaced needs its shards until the new one is complete
                 linked = os.path.abspath(workdir)
                 workdir = linked + ".new"
+                if _holds_another_run(workdir, run):  # left by a failed force of another run
+                    import shutil
+
+                    shutil.rmtree(workdir)
             workdir = _claim_workdir(workdir, run)
         start = time.perf_counter()
         futures = [

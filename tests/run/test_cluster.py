@@ -269,7 +269,16 @@ def test_run_with_scheduler_prints_the_single_machine_numbers(capsys, cluster, t
     [
         (["--shards", "2"], "--shards needs --scheduler ADDRESS"),
         (["--workdir", "w"], "--workdir needs --scheduler ADDRESS"),
-        (["--scheduler", "tcp://127.0.0.1:1", "--snapshot-every", "5"], "--snapshot-every does not go with"),
+        (["--scheduler", "tcp://127.0.0.1:1", "--snapshot-every", "5"], "--snapshot-every needs --out FILE"),
+        (["--scheduler", "tcp://127.0.0.1:1", "--force"], "--force needs --out FILE"),
+        (
+            ["--scheduler", "tcp://127.0.0.1:1", "--rerun", "r.rrd"],
+            "--rerun does not go with --scheduler: its",
+        ),
+        (
+            ["--scheduler", "tcp://127.0.0.1:1", "--out", "o.h5", "--snapshot-points", "101"],
+            "is more than the",
+        ),
         (["--scheduler", "tcp://127.0.0.1:1", "--shards", "0"], "shards = 0 is outside the allowed range"),
     ],
 )
@@ -491,8 +500,53 @@ def test_out_exposes_the_single_machines_snapshots_bit_for_bit(cluster, tmp_path
             k: settings[k] for k in ("snapshot_every", "snapshot_points")
         }
         ds = arc.to_xarray("snapshots")
+        from viz.record import replay
+
+        assert replay(arc, tmp_path / "replay.rrd").frames == [1500, 3000]
     assert list(snapshots.steps) == [1500, 3000] and snapshots.indices.size == snapshot_points
     assert exact(snapshots.__dict__) == exact(reference.__dict__)
     assert ds.sizes == xr.sizes and all(exact(ds[k].values) == exact(xr[k].values) for k in xr.variables)
     assert verify_archive(out)[0] == []
     assert main(["inspect", str(out)]) == 0 and main(["verify", str(out)]) == 0
+
+
+def test_force_replaces_out_only_when_the_new_run_is_complete(capsys, cluster, tmp_path, references):
+    from warpratchet import open_archive
+    from warpratchet.archive import verify_archive
+
+    out = tmp_path / "run.h5"
+    other = RunSpec(K=3.0, b1=0.1, b2=0.01, points=300, steps=200, seed=4, threads=1)
+    with distributed.Client(cluster) as client:
+        run_sharded(other, client, 2, out=out)
+        with pytest.raises(RuntimeError, match="failed: ValueError: no luck"):
+            run_sharded(SPEC, client, 2, out=out, force=True, observers=[Fails()])
+    with open_archive(out) as arc:  # the failed run left the file and its shards as they were
+        assert (arc.points, arc.settings["seed"]) == (300, 4)
+    assert verify_archive(out)[0] == []
+    flags = ("--scheduler", cluster.scheduler_address, "--shards", "2", "--out", str(out))
+    assert "exists and is not an archive of this run" in refused(capsys, run_argv(*flags))
+    report = run_json(capsys, *flags, "--force", "--snapshot-every", "1500", "--snapshot-points", "10")
+    assert report["archive"] == str(out)
+    with open_archive(out) as arc:
+        assert same_history(arc.history, references[False][1])
+        assert list(arc.snapshots.steps) == [1500, 3000] and arc.checkpoint_step == SPEC.steps
+    assert verify_archive(out)[0] == [] and sorted(os.listdir(tmp_path)) == ["run.h5", "run.h5.shards"]
+
+
+def test_a_shard_continued_from_its_archive_keeps_its_snapshots(tmp_path):
+    """The snapshot at step 1500, taken before the stop, comes back from the shard's records."""
+    import h5py
+
+    from warpratchet.cluster import snapshot_file
+
+    def snapshots(folder):
+        with h5py.File(snapshot_file(folder), "r") as f:
+            return {name: f[name][()].tobytes() for name in f}
+
+    through = run_shard(SPEC, 500, 1300, False, [], tmp_path / "a", 1, 500, SNAPSHOT_EVERY, 150)
+    with pytest.raises(RuntimeError, match="stopped at step 1500"):
+        run_shard(SPEC, 500, 1300, False, [StopsAt(1500)], tmp_path / "b", 1, 500, SNAPSHOT_EVERY, 150)
+    notes = StopsAt(SPEC.steps + 1)
+    again = run_shard(SPEC, 500, 1300, False, [notes], tmp_path / "b", 1, 500, SNAPSHOT_EVERY, 150)
+    assert notes.began == [1500]
+    assert snapshots(again.folder) == snapshots(through.folder) and len(snapshots(through.folder)) > 2
