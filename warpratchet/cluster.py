@@ -100,17 +100,32 @@ def _kind(transport: bool):
     return Ensemble
 
 
-def shard_bytes(spec: RunSpec, points: int, transport: bool = False, on_disk: bool = False) -> int:
+def shard_bytes(
+    spec: RunSpec,
+    points: int,
+    transport: bool = False,
+    on_disk: bool = False,
+    snapshots: tuple[int, int] = (0, 0),
+) -> int:
     """Memory a shard of ``points`` points needs on its worker: the state (and transport's
     carry), one summary's working memory, and its records: 16 B per point per history row, or
     with ``on_disk`` (records in a workdir) one row of them; and for the merge, a block of points
     that shards share, whose records at every row one task holds (twice: the pieces and the row
-    they make)."""
+    they make). With ``snapshots`` (``(snapshot_every, snapshot_points)``), the snapshots of at
+    most ``min(points, snapshot_points)`` of its points, which it keeps to the end."""
     every = len(history_steps(0, spec.steps))
     rows = 1 if on_disk else every
     state = _kind(transport).bytes_per_point()
     shared = 2 * min(_ensemble_size(spec), _obs.SUMMARY_CHUNK) * 16 * every
-    return points * (state + 16 * rows) + min(points, _obs.SUMMARY_CHUNK) * SUMMARY_BYTES_PER_POINT + shared
+    snapped = (
+        len(snapshot_steps(spec.steps, snapshots[0])) * len(SNAPSHOT_FIELDS) * 8 * min(points, snapshots[1])
+    )
+    return (
+        points * (state + 16 * rows)
+        + min(points, _obs.SUMMARY_CHUNK) * SUMMARY_BYTES_PER_POINT
+        + shared
+        + snapped
+    )
 
 
 @dataclass
@@ -729,14 +744,19 @@ def check_merge(points: int, transport: bool = False, rows: int = 64) -> None:
 
 
 def _check_workers(
-    client: Any, spec: RunSpec, bounds: list[tuple[int, int]], transport: bool, on_disk: bool
+    client: Any,
+    spec: RunSpec,
+    bounds: list[tuple[int, int]],
+    transport: bool,
+    on_disk: bool,
+    snapshots: tuple[int, int] = (0, 0),
 ) -> None:
     """ResourceError, before any work, if the largest shard does not fit the smallest worker."""
     limits = _worker_memory(client)
     if not limits:
         raise ResourceError("the Dask cluster has no workers; start some (docs/cluster.md)")
     largest = max(hi - lo for lo, hi in bounds)
-    needed = shard_bytes(spec, largest, transport, on_disk)
+    needed = shard_bytes(spec, largest, transport, on_disk, snapshots)
     address, smallest = min(limits.items(), key=lambda item: item[1])
     if smallest and needed > smallest:
         rows = 1 if on_disk else len(history_steps(0, spec.steps))
@@ -882,7 +902,7 @@ def run_sharded(
         if shards is None:
             shards = max(1, len(client.scheduler_info()["workers"]))
         bounds = shard_bounds(points, min(check_count("shards", shards, 1, points), points))
-        _check_workers(client, spec, bounds, transport, workdir is not None)
+        _check_workers(client, spec, bounds, transport, workdir is not None, snapshots)
         check_merge(points, transport, len(history_steps(0, spec.steps)))
         linked = None  # where the merged archive finds the shards, if not in workdir
         if workdir is not None:

@@ -550,3 +550,10 @@ def test_a_shard_continued_from_its_archive_keeps_its_snapshots(tmp_path):
     again = run_shard(SPEC, 500, 1300, False, [notes], tmp_path / "b", 1, 500, SNAPSHOT_EVERY, 150)
     assert notes.began == [1500]
     assert snapshots(again.folder) == snapshots(through.folder) and len(snapshots(through.folder)) > 2
+
+
+def test_a_shards_memory_counts_the_snapshots_it_keeps():
+    from warpratchet.archive._format import SNAPSHOT_FIELDS
+
+    more = shard_bytes(SPEC, 700, snapshots=(SNAPSHOT_EVERY, 1000)) - shard_bytes(SPEC, 700)
+    assert more == 2 * len(SNAPSHOT_FIELDS) * 8 * 700  # two snapshots of at most its 700 points
