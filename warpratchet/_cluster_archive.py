@@ -14,7 +14,11 @@
   folder, so the two move together;
 * with transport counting, ``/transport`` as a single machine's archive has it: its rows the sums
   of the shards' rows, the checkpoint slot's counts and spread rows the merged ones (bit for bit
-  the single machine's), its carry per point virtual datasets over the shards'.
+  the single machine's), its carry per point virtual datasets over the shards';
+* with snapshots, ``/snapshots`` as a single machine's archive has it (the subsample of the whole
+  ensemble, the multiples of ``snapshot_every``), each field of
+  :data:`~warpratchet.archive._format.SNAPSHOT_FIELDS` a virtual dataset over the shards'
+  snapshot files (:func:`snapshot_file`), their columns side by side in global point order.
 """
 
 from __future__ import annotations
