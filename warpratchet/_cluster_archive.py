@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import datetime
 import os
-import shutil
 import time
 from typing import Any
 
@@ -41,7 +40,7 @@ from .archive._writer import build_file
 from .ensemble import STATE_FIELDS
 from .spec import CHECKPOINT_SECONDS
 
-__all__ = ["write_merged"]
+__all__ = ["shards_folder", "write_merged"]
 
 
 def shard_paths(workdir: str | os.PathLike, index: int) -> tuple[str, str]:
@@ -147,13 +146,18 @@ def _write_snapshots(f: h5py.File, steps: list[int], sources: list[tuple[str, in
             ds.dims[axis].attach_scale(scale)
 
 
-def _swap_folders(staged: str, linked: str) -> None:
-    """Give the folder ``staged`` the name ``linked``, and the folder there the name ``linked.old``."""
-    old = linked + ".old"
-    shutil.rmtree(old, ignore_errors=True)
-    if os.path.lexists(linked):
-        os.replace(linked, old)
-    os.replace(staged, linked)
+def shards_folder(out: str | os.PathLike) -> str | None:
+    """The folder of the shards whose data the merged archive ``out`` reads (the folder of the
+    source file of ``/initial``'s virtual datasets, resolved as HDF5 does), or None when ``out``
+    has no virtual datasets there (an archive of one machine)."""
+    from .archive._reader import virtual_source_path
+
+    out = os.fspath(out)
+    with h5py.File(out, "r", locking=False) as f:
+        ds = f["initial"][STATE_FIELDS[0]]
+        if not ds.is_virtual:
+            return None
+        return os.path.dirname(os.path.abspath(virtual_source_path(out, ds.virtual_sources()[0].file_name)))
 
 
 def write_merged(
@@ -164,21 +168,19 @@ def write_merged(
     snapshots: tuple[int, int] = (0, 0),
     *,
     replace: bool = False,
-    linked: str | None = None,
 ) -> None:
     """Write ``out`` for ``merged`` (a :class:`~warpratchet.cluster.ShardedRun`) whose shards'
     archives are in ``workdir`` (module docstring).
 
     ``snapshots``: ``(snapshot_every, snapshot_points)`` of the run (the shards' snapshot files
     are in their records folders); ``replace``: replace an existing ``out`` (atomically, when the
-    new file is complete); ``linked``: the folder the new file refers to for the shards, when
-    not ``workdir``. ``workdir`` is then renamed ``linked`` just before the new file is
-    published, and the folder that had that name (the replaced file's shards) is removed after.
+    new file is complete: the file at ``out`` reads its own shards' files at every instant, the
+    old ones until the rename, the new ones after).
     """
     out = os.fspath(out)
     folder = os.path.dirname(os.path.abspath(out))
     archives = [shard_paths(workdir, k)[0] for k in range(len(bounds))]
-    relative = [os.path.relpath(shard_paths(linked or workdir, k)[0], folder) for k in range(len(bounds))]
+    relative = [os.path.relpath(shard_paths(workdir, k)[0], folder) for k in range(len(bounds))]
     spec = merged.spec
     every, m = snapshots
     settings = _format.run_settings(
@@ -191,7 +193,7 @@ def write_merged(
     for k, (lo, hi) in enumerate(bounds):
         inside = np.flatnonzero((indices >= lo) & (indices < hi))
         if inside.size:
-            path = snapshot_file(shard_paths(linked or workdir, k)[1])
+            path = snapshot_file(shard_paths(workdir, k)[1])
             columns.append((os.path.relpath(path, folder), int(inside[0]), int(inside[-1]) + 1))
     fills = {name: np.broadcast_to(_format.FILL[name], (merged.points,)) for name in STATE_FIELDS}
     contents = {
@@ -230,15 +232,16 @@ def write_merged(
         set_counter(f["checkpoint"][SLOTS[0]]["step"], merged.step)
         set_counter(f["checkpoint"]["current"], 0)
 
-    opened: list[h5py.File] = []
-
     def start(f: h5py.File) -> None:
-        sync_h5(f)  # durable before the file gets its name
-        opened.append(f)
-        if linked is not None:
-            _swap_folders(workdir, linked)
+        # closed and durable before it gets its name: a kill after the rename leaves a complete
+        # file, not one marked open by a writer
+        sync_h5(f)
+        name = f.filename
+        f.close()
+        fd = os.open(name, os.O_RDONLY)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
 
     build_file(out, contents, start, replace=replace, fill=fill)
-    opened[0].close()
-    if linked is not None:
-        shutil.rmtree(linked + ".old", ignore_errors=True)

@@ -779,15 +779,30 @@ def _manifest(spec: RunSpec, bounds: list, transport: bool, snapshots: tuple[int
     return run
 
 
-def _holds_another_run(workdir: str, run: dict) -> bool:
-    """Whether ``workdir`` has a ``run.json`` of a run other than ``run``."""
+#: The prefix of a run's folder in the shards folder beside ``out`` (:func:`_run_folder`).
+RUN_FOLDER = "run-"
+
+
+def _run_folder(run: dict) -> str:
+    """The name of the folder of the run ``run`` (:func:`_manifest`) in ``out + ".shards"``: the
+    same for the same run (the same command again continues it), another for another run (so a
+    run that replaces ``out`` never writes where the file it replaces reads)."""
+    import hashlib
     import json
 
-    manifest = os.path.join(workdir, "run.json")
-    if not os.path.exists(manifest):
-        return False
-    with open(manifest) as f:
-        return json.load(f) != run
+    return RUN_FOLDER + hashlib.sha256(json.dumps(run, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _remove_other_runs(workdir: str) -> None:
+    """Remove the other runs' folders beside ``workdir`` (in ``out + ".shards"``), once ``out``
+    reads ``workdir``'s: the replaced file's shards, and what runs that never published left."""
+    import shutil
+
+    parent = os.path.dirname(workdir)
+    for name in os.listdir(parent):
+        path = os.path.join(parent, name)
+        if name.startswith(RUN_FOLDER) and path != workdir and os.path.isdir(path):
+            shutil.rmtree(path)
 
 
 def _claim_workdir(workdir: str | os.PathLike, run: dict) -> str:
@@ -851,8 +866,9 @@ def run_sharded(
         Steps between the shards' checkpoints (with ``workdir``; default: the archive's).
     out : path, optional
         One archive of the whole run, written when it is merged (a new file; ``workdir``
-        defaults to ``out`` + ``".shards"``): the merged series and history, and the shards'
-        per-point data as virtual datasets over their archives (:mod:`warpratchet._cluster_archive`).
+        defaults to the run's own folder in ``out`` + ``".shards"``, named by the run,
+        :func:`_run_folder`): the merged series and history, and the shards' per-point data as
+        virtual datasets over their archives (:mod:`warpratchet._cluster_archive`).
     progress : bool
         A progress bar over the shards done, on stderr.
     snapshot_every, snapshot_points : int
@@ -860,9 +876,10 @@ def run_sharded(
         :class:`~warpratchet.archive.ArchiveSink` takes them: each shard takes those of its points
         (with ``workdir``), and ``out`` exposes them as the single machine's ``/snapshots``.
     force : bool
-        Replace an existing ``out``. It stays as it is until the new one is complete; the shards
-        of the run it holds (``out`` + ``".shards"``, when that holds another run) are replaced
-        with it.
+        Replace an existing ``out``. It stays as it is, reading its own shards, until the new one
+        is complete and takes its name in one rename; with the default ``workdir`` the new run's
+        shards are in their own folder, and the other runs' folders in ``out`` + ``".shards"``
+        are removed after.
 
     Raises
     ------
@@ -904,17 +921,10 @@ def run_sharded(
         bounds = shard_bounds(points, min(check_count("shards", shards, 1, points), points))
         _check_workers(client, spec, bounds, transport, workdir is not None, snapshots)
         check_merge(points, transport, len(history_steps(0, spec.steps)))
-        linked = None  # where the merged archive finds the shards, if not in workdir
         if workdir is not None:
             run = _manifest(spec, bounds, transport, snapshots)
-            if force and shared and _holds_another_run(os.path.abspath(workdir), run):
-                # the file being replaced needs its shards until the new one is complete
-                linked = os.path.abspath(workdir)
-                workdir = linked + ".new"
-                if _holds_another_run(workdir, run):  # left by a failed force of another run
-                    import shutil
-
-                    shutil.rmtree(workdir)
+            if shared:  # each run its own folder: a replaced out reads its own until the new one is out
+                workdir = os.path.join(workdir, _run_folder(run))
             workdir = _claim_workdir(workdir, run)
         start = time.perf_counter()
         futures = [
@@ -965,7 +975,9 @@ def run_sharded(
         if out is not None:
             from ._cluster_archive import write_merged
 
-            write_merged(out, merged, workdir, bounds, snapshots, replace=force, linked=linked)
+            write_merged(out, merged, workdir, bounds, snapshots, replace=force)
+            if shared:
+                _remove_other_runs(workdir)
         return merged
     finally:
         if owned:

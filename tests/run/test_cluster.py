@@ -341,7 +341,7 @@ def test_run_with_scheduler_and_out_the_same_command_again_reports_it(capsys, cl
     out = str(tmp_path / "run.h5")
     flags = ("--scheduler", cluster.scheduler_address, "--shards", "2", "--out", out)
     first = run_json(capsys, *flags)
-    assert first["archive"] == out and first["workdir"] == out + ".shards"
+    assert first["archive"] == out and os.path.dirname(first["workdir"]) == out + ".shards"
     with open_archive(out) as arc:
         assert same_history(arc.history, references[False][1])
     stamp = os.stat(out).st_mtime_ns
@@ -531,6 +531,66 @@ def test_force_replaces_out_only_when_the_new_run_is_complete(capsys, cluster, t
         assert same_history(arc.history, references[False][1])
         assert list(arc.snapshots.steps) == [1500, 3000] and arc.checkpoint_step == SPEC.steps
     assert verify_archive(out)[0] == [] and sorted(os.listdir(tmp_path)) == ["run.h5", "run.h5.shards"]
+    assert len(os.listdir(tmp_path / "run.h5.shards")) == 1  # the replaced run's shards are gone
+
+
+def archive_content(path) -> tuple:
+    """What an archive holds: its points and seed, its history's rows, its checkpoint's bits."""
+    from warpratchet import open_archive
+
+    with open_archive(path) as arc:
+        state, step = arc.checkpoint()
+        return arc.points, arc.settings["seed"], exact(arc.history.as_dict()), step, exact(state)
+
+
+def publishes_then_fails(real):
+    def publish(tmp, path, replace):
+        real(tmp, path, replace=replace)
+        raise KeyboardInterrupt("killed after the rename")
+
+    return publish
+
+
+def fails(*args, **kwargs):
+    raise KeyboardInterrupt("killed here")
+
+
+@pytest.mark.parametrize(
+    "where, published",
+    [
+        ("warpratchet._cluster_archive._write_snapshots", False),  # writing the new file
+        ("warpratchet._cluster_archive.sync_h5", False),  # making it durable
+        ("warpratchet.archive._writer.publish", False),  # just before the rename
+        ("warpratchet.archive._writer.publish", True),  # just after the rename
+        ("warpratchet.cluster._remove_other_runs", True),  # removing the replaced run's shards
+    ],
+)
+def test_force_killed_at_each_step_of_publishing_leaves_a_consistent_archive(
+    monkeypatch, client, tmp_path, where, published
+):
+    """The file at ``out`` reads its own run's shards at every instant: the old run's until the
+    rename, the new run's after; the same call again completes the replacement."""
+    import warpratchet.archive._writer as writer
+    from warpratchet.archive import verify_archive
+
+    out = tmp_path / "run.h5"
+    other = RunSpec(K=3.0, b1=0.1, b2=0.01, points=300, steps=200, seed=4, threads=1)
+    run_sharded(other, client, 2, out=out)
+    old = archive_content(out)
+    new_run = dict(out=out, force=True, snapshot_every=SNAPSHOT_EVERY, snapshot_points=10)
+    with monkeypatch.context() as patched:
+        fault = publishes_then_fails(writer.publish) if published and where.endswith("publish") else fails
+        patched.setattr(where, fault)
+        with pytest.raises(KeyboardInterrupt):
+            run_sharded(SPEC, client, 2, **new_run)
+    assert verify_archive(out)[0] == []
+    content = archive_content(out)
+    assert (content == old) != published and content[:2] == (
+        (SPEC.points, SPEC.seed) if published else (300, 4)
+    )
+    run_sharded(SPEC, client, 2, **new_run)  # the same call again
+    assert verify_archive(out)[0] == [] and archive_content(out)[:2] == (SPEC.points, SPEC.seed)
+    assert len(os.listdir(f"{out}.shards")) == 1
 
 
 def test_a_shard_continued_from_its_archive_keeps_its_snapshots(tmp_path):
@@ -557,3 +617,37 @@ def test_a_shards_memory_counts_the_snapshots_it_keeps():
 
     more = shard_bytes(SPEC, 700, snapshots=(SNAPSHOT_EVERY, 1000)) - shard_bytes(SPEC, 700)
     assert more == 2 * len(SNAPSHOT_FIELDS) * 8 * 700  # two snapshots of at most its 700 points
+
+
+def test_a_missing_shard_file_is_refused_by_every_reader_and_flagged_by_verify(capsys, cluster, tmp_path):
+    """HDF5 reads a virtual dataset whose source file is gone as fill values: every route that reads
+    the merged archive names the missing file instead (``/initial``, the checkpoint, the snapshots)."""
+    import glob
+
+    from warpratchet import open_archive
+    from warpratchet.archive import ArchiveError, verify_archive
+    from warpratchet.cli import main
+
+    out = str(tmp_path / "run.h5")
+    flags = ("--scheduler", cluster.scheduler_address, "--shards", "2", "--out", out)
+    snap = ("--snapshot-every", str(SNAPSHOT_EVERY), "--snapshot-points", "10")
+    first = run_json(capsys, *flags, *snap)
+    for pattern in ("shard-0001.h5", "shard-0001.records/snapshots.h5"):
+        [moved] = glob.glob(os.path.join(out + ".shards", "**", pattern), recursive=True)
+        os.rename(moved, tmp_path / "away.h5")
+        name = os.path.basename(moved)
+        with pytest.raises(ArchiveError, match=f"reads from .*{name}, which is missing"):
+            open_archive(out)
+        problems = verify_archive(out)[0]
+        assert problems and all(f"{name}, which is missing" in p for p in problems)
+        assert main(["verify", out]) == 1 and f"{name}, which is missing" in capsys.readouterr().out
+        for argv in (["inspect", out], ["resume", out, "--steps", "4000"], run_argv(*flags, *snap)):
+            assert f"{name}, which is missing" in refused(capsys, argv)
+        os.rename(tmp_path / "away.h5", moved)
+        assert verify_archive(out)[0] == [] and main(["inspect", out]) == 0
+        capsys.readouterr()
+        again = run_json(capsys, *flags, *snap)
+        timing = ("seconds", "point_steps_per_second")
+        assert {k: v for k, v in again.items() if k not in timing} == {
+            k: v for k, v in first.items() if k not in timing
+        }

@@ -73,11 +73,14 @@ _SAME_RUN = ("K", "b1", "b2", "init", "points", "seed", "steps", "threshold", "t
 def _same_run(out: str, spec: RunSpec) -> None:
     """UsageError unless ``out`` is an archive of this run (the same command again)."""
     from ..archive import ArchiveError, open_archive
+    from ..archive._reader import VirtualSourceError
 
     why = f"{out} exists and is not an archive of this run; choose another file"
     try:
         with open_archive(out) as arc:
             stored = arc.spec
+    except VirtualSourceError as exc:  # this run's archive, perhaps, but its shards are not all there
+        raise UsageError(str(exc)) from None
     except ArchiveError:
         raise UsageError(why) from None
     if stored is None or any(getattr(stored, k) != getattr(spec, k) for k in _SAME_RUN):
@@ -95,13 +98,14 @@ def command(args: argparse.Namespace, spec: RunSpec) -> int:
         raise UsageError(
             "--scheduler needs dask.distributed: pip install 'warpratchet[distributed]'"
         ) from None
+    from .._cluster_archive import shards_folder
+
     out, workdir = args.out, args.workdir
     if out is not None:
         check_schedule(args, spec)
-        if workdir is None:
-            workdir = out + ".shards"
     if out is not None and os.path.lexists(out) and not args.force:
         _same_run(out, spec)
+        workdir = shards_folder(out)  # where this run's shards are: the folder the file reads
         _say(args, f"{out} holds this run already: its report, merged again from the shards in {workdir}")
         write = None
     else:
@@ -115,7 +119,7 @@ def command(args: argparse.Namespace, spec: RunSpec) -> int:
         start = time.perf_counter()
         merged = run_sharded(
             spec, client, args.shards, transport=args.transport, out=write,
-            workdir=workdir if write is None else args.workdir,  # run_sharded knows the default
+            workdir=workdir,  # None: run_sharded knows the default
             checkpoint_every=args.checkpoint_every, progress=not args.quiet, force=args.force,
             snapshot_every=args.snapshot_every, snapshot_points=args.snapshot_points or 1000,
         )  # fmt: skip
@@ -126,6 +130,8 @@ def command(args: argparse.Namespace, spec: RunSpec) -> int:
     report.update(history_report(merged.history, spec.threshold_rule))
     report["shards"] = merged.shards
     report["scheduler"] = args.scheduler
+    if write is not None:
+        workdir = shards_folder(out)
     if workdir is not None:
         report["workdir"] = workdir
     if out is not None:
