@@ -434,11 +434,13 @@ def test_out_of_a_transport_run_holds_the_merged_transport_group(client, tmp_pat
 SNAPSHOT_EVERY = 1500
 
 
-def single_machine_archive(path, snapshot_points: int) -> None:
+def single_machine_archive(path, snapshot_points: int, transport: bool = False) -> None:
     """The single machine's archive of SPEC with snapshots, as ``warpratchet run --out`` writes it."""
     from warpratchet.archive import ArchiveSink
 
-    ensemble = Ensemble.sample(SPEC.params, SPEC.points, SPEC.init, SPEC.seed, threads=2)
+    kind = TransportEnsemble if transport else Ensemble
+    ensemble = kind.sample(SPEC.params, SPEC.points, SPEC.init, SPEC.seed, threads=2)
+    ensemble.threshold, ensemble.threshold_rule = SPEC.threshold, SPEC.threshold_rule
     sink = ArchiveSink(
         path, ensemble, snapshot_every=SNAPSHOT_EVERY, snapshot_points=snapshot_points,
         chunk_steps=SPEC.chunk_steps, threshold=SPEC.threshold, threshold_rule=SPEC.threshold_rule,
@@ -651,3 +653,23 @@ def test_a_missing_shard_file_is_refused_by_every_reader_and_flagged_by_verify(c
         assert {k: v for k, v in again.items() if k not in timing} == {
             k: v for k, v in first.items() if k not in timing
         }
+
+
+def test_out_of_a_transport_run_with_snapshots_equals_the_single_machines(client, tmp_path):
+    from warpratchet import open_archive
+    from warpratchet.archive import verify_archive
+
+    def transport(path) -> tuple:
+        with open_archive(path) as arc:
+            _, step, state = arc.checkpoint_with_transport()
+            carry = {k: exact(v) for k, v in state.carry.items()}
+            held = (exact(state.counts), carry, exact(state.spread_steps), exact(state.spread))
+            return exact(arc.transport), step, held
+
+    single, out = tmp_path / "single.h5", tmp_path / "run.h5"
+    single_machine_archive(single, 150, transport=True)
+    run_sharded(SPEC, client, 3, transport=True, out=out, snapshot_every=SNAPSHOT_EVERY, snapshot_points=150)
+    expected = snapshot_datasets(single)
+    assert snapshot_datasets(out) == expected and len(expected) > 2
+    assert transport(out) == transport(single)
+    assert verify_archive(out)[0] == []
