@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from . import observables as _obs
-from ._cluster_archive import shard_paths, snapshot_file, snapshot_steps
+from ._cluster_archive import shard_paths, shards_folder, snapshot_file, snapshot_steps
 from .archive._format import SNAPSHOT_FIELDS
 from .archive._rows import snapshot_indices, snapshot_row
 from .errors import ParameterError, ResourceError, check_count, renamed_attribute
@@ -71,6 +71,7 @@ __all__ = [
     "shard_bounds",
     "shard_bytes",
     "shard_paths",
+    "shards_folder",
     "snapshot_file",
     "run_shard",
     "run_sharded",

@@ -72,8 +72,7 @@ _SAME_RUN = ("K", "b1", "b2", "init", "points", "seed", "steps", "threshold", "t
 
 def _same_run(out: str, spec: RunSpec) -> None:
     """UsageError unless ``out`` is an archive of this run (the same command again)."""
-    from ..archive import ArchiveError, open_archive
-    from ..archive._reader import VirtualSourceError
+    from ..archive import ArchiveError, VirtualSourceError, open_archive
 
     why = f"{out} exists and is not an archive of this run; choose another file"
     try:
@@ -98,7 +97,7 @@ def command(args: argparse.Namespace, spec: RunSpec) -> int:
         raise UsageError(
             "--scheduler needs dask.distributed: pip install 'warpratchet[distributed]'"
         ) from None
-    from .._cluster_archive import shards_folder
+    from ..cluster import shards_folder
 
     out, workdir = args.out, args.workdir
     if out is not None:
