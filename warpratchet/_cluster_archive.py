@@ -10,8 +10,9 @@
 * ``/initial`` and the checkpoint (slot ``a``, at the last step) are HDF5 virtual datasets: each
   field the concatenation, in global point order, of the same field of the shards' archives
   (their initial state, and the slot their last checkpoint is in). Nothing per point is copied;
-  the shards' files must stay where they are, and their paths are stored relative to ``out``'s
-  folder, so the two move together;
+  the shards' files must stay where they are (a reader refuses the file while one is missing,
+  :class:`~warpratchet.archive.VirtualSourceError`), and their paths are stored relative to
+  ``out``'s folder, so the two move together;
 * with transport counting, ``/transport`` as a single machine's archive has it: its rows the sums
   of the shards' rows, the checkpoint slot's counts and spread rows the merged ones (bit for bit
   the single machine's), its carry per point virtual datasets over the shards';
