@@ -53,7 +53,9 @@ from typing import Any
 import numpy as np
 
 from . import observables as _obs
-from ._cluster_archive import shard_paths
+from ._cluster_archive import shard_paths, shards_folder, snapshot_file, snapshot_steps
+from .archive._format import SNAPSHOT_FIELDS
+from .archive._rows import snapshot_indices, snapshot_row
 from .errors import ParameterError, ResourceError, check_count, renamed_attribute
 from .history import BLOCKS, History, block_steps, block_subsample, history_row, history_steps
 from .limits import format_bytes
@@ -69,6 +71,8 @@ __all__ = [
     "shard_bounds",
     "shard_bytes",
     "shard_paths",
+    "shards_folder",
+    "snapshot_file",
     "run_shard",
     "run_sharded",
 ]
@@ -97,17 +101,32 @@ def _kind(transport: bool):
     return Ensemble
 
 
-def shard_bytes(spec: RunSpec, points: int, transport: bool = False, on_disk: bool = False) -> int:
+def shard_bytes(
+    spec: RunSpec,
+    points: int,
+    transport: bool = False,
+    on_disk: bool = False,
+    snapshots: tuple[int, int] = (0, 0),
+) -> int:
     """Memory a shard of ``points`` points needs on its worker: the state (and transport's
     carry), one summary's working memory, and its records: 16 B per point per history row, or
     with ``on_disk`` (records in a workdir) one row of them; and for the merge, a block of points
     that shards share, whose records at every row one task holds (twice: the pieces and the row
-    they make)."""
+    they make). With ``snapshots`` (``(snapshot_every, snapshot_points)``), the snapshots of at
+    most ``min(points, snapshot_points)`` of its points, which it keeps to the end."""
     every = len(history_steps(0, spec.steps))
     rows = 1 if on_disk else every
     state = _kind(transport).bytes_per_point()
     shared = 2 * min(_ensemble_size(spec), _obs.SUMMARY_CHUNK) * 16 * every
-    return points * (state + 16 * rows) + min(points, _obs.SUMMARY_CHUNK) * SUMMARY_BYTES_PER_POINT + shared
+    snapped = (
+        len(snapshot_steps(spec.steps, snapshots[0])) * len(SNAPSHOT_FIELDS) * 8 * min(points, snapshots[1])
+    )
+    return (
+        points * (state + 16 * rows)
+        + min(points, _obs.SUMMARY_CHUNK) * SUMMARY_BYTES_PER_POINT
+        + shared
+        + snapped
+    )
 
 
 @dataclass
@@ -159,7 +178,13 @@ class _Recorder(Observer):
     """
 
     def __init__(
-        self, steps: list[int], blocks: list[int], members: np.ndarray, points: int, folder: str | None = None
+        self,
+        steps: list[int],
+        blocks: list[int],
+        members: np.ndarray,
+        points: int,
+        folder: str | None = None,
+        snapshots: tuple[list[int], np.ndarray] = ([], np.empty(0, dtype=np.int64)),
     ) -> None:
         self.steps, self.blocks, self.members, self.folder = steps, blocks, members, folder
         # with a folder the rows live on disk only: a shard's memory stays its state's
@@ -168,9 +193,14 @@ class _Recorder(Observer):
             self.gain, self.stretch = np.empty((2, len(steps), points))
         self.block_gain = np.empty((len(blocks), members.size))
         self.block_ftle = np.empty((len(blocks), members.size))
+        # the archive's snapshots of this shard's points of the subsample (local indices)
+        self.snapshot_steps, self.snapshot_points = snapshots
+        self.snapshots = {name: np.empty((len(self.snapshot_steps), self.snapshot_points.size))
+                          for name in SNAPSHOT_FIELDS}  # fmt: skip
 
     def next_stop(self, step: int) -> int | None:
-        return next((n for n in sorted({*self.steps, *self.blocks}) if n > step), None)
+        stops = sorted({*self.steps, *self.blocks, *self.snapshot_steps})
+        return next((n for n in stops if n > step), None)
 
     def after_chunk(self, ensemble: Any, seconds: float) -> None:
         step = ensemble.step
@@ -190,6 +220,12 @@ class _Recorder(Observer):
             self.block_gain[row] = momentum_gain(sub)
             self.block_ftle[row] = lyapunov(sub, step)
             due.update(block_gain=self.block_gain[row], block_ftle=self.block_ftle[row])
+        if step in self.snapshot_steps:
+            row = self.snapshot_steps.index(step)
+            snapshot = snapshot_row(views, self.snapshot_points, step)
+            for name in SNAPSHOT_FIELDS:
+                self.snapshots[name][row] = snapshot[name]
+                due[f"snapshot_{name}"] = snapshot[name]
         if due and self.folder is not None:
             self._save(step, due)
 
@@ -205,15 +241,35 @@ class _Recorder(Observer):
             publish(tmp, path, replace=True)
 
     def load(self, step: int) -> None:
-        """The block records of every step up to ``step`` from :attr:`folder` (a retried shard's;
-        its rows stay there)."""
+        """The block records and snapshots of every step up to ``step`` from :attr:`folder` (a
+        retried shard's; its rows stay there)."""
         for n in self.blocks:
             if n > step:
                 break
             with np.load(_step_path(self.folder, n)) as saved:
-                if n in self.blocks:
-                    row = self.blocks.index(n)
-                    self.block_gain[row], self.block_ftle[row] = saved["block_gain"], saved["block_ftle"]
+                row = self.blocks.index(n)
+                self.block_gain[row], self.block_ftle[row] = saved["block_gain"], saved["block_ftle"]
+        for row, n in enumerate(self.snapshot_steps):
+            if n > step:
+                break
+            with np.load(_step_path(self.folder, n)) as saved:
+                for name in SNAPSHOT_FIELDS:
+                    self.snapshots[name][row] = saved[f"snapshot_{name}"]
+
+    def write_snapshots(self, path: str) -> None:
+        """The snapshots as datasets ``SNAPSHOT_FIELDS`` of shape ``(snapshots, points)`` in a new
+        HDF5 file ``path``, published atomically (the merged archive's virtual sources)."""
+        import h5py
+
+        from ._files import publish, temporary_beside
+        from ._h5 import sync_h5
+
+        with temporary_beside(path) as tmp:
+            with h5py.File(tmp, "w") as f:
+                for name in SNAPSHOT_FIELDS:
+                    f.create_dataset(name, data=self.snapshots[name])
+                sync_h5(f)
+            publish(tmp, path, replace=True)
 
 
 def _sample_shard(spec: RunSpec, lo: int, hi: int, transport: bool):
@@ -236,6 +292,8 @@ def run_shard(
     workdir: str | os.PathLike | None = None,
     index: int = 0,
     checkpoint_every: int | None = None,
+    snapshot_every: int = 0,
+    snapshot_points: int = 0,
 ) -> ShardRecord:
     """Run points ``lo <= i < hi`` of the ensemble of ``spec`` to ``spec.steps``: what a Dask task does.
 
@@ -246,7 +304,10 @@ def run_shard(
     own there (:func:`shard_paths`: an ordinary archive of its points, checkpointed every
     ``checkpoint_every`` steps, :class:`~warpratchet.archive.ArchiveSink`) and keeps its records
     beside it; a shard whose archive exists (a retry after its worker died) continues from the
-    archive's checkpoint, bit for bit.
+    archive's checkpoint, bit for bit. With ``snapshot_every``, it also takes the snapshots a
+    single machine's archive takes (:func:`snapshot_steps`) of the points of the archive's
+    subsample of ``snapshot_points`` that are its own, and writes them to
+    ``snapshots.h5`` in its records folder when it ends (:func:`snapshot_file`).
     """
     from .ensemble import Ensemble
 
@@ -254,8 +315,12 @@ def run_shard(
     indices = block_subsample(n, spec.seed)
     members = indices[(indices >= lo) & (indices < hi)] - lo
     archive, folder = shard_paths(workdir, index) if workdir is not None else (None, None)
+    if snapshot_every and folder is None:
+        raise ParameterError(f"snapshot_every = {snapshot_every}: a shard's snapshots need a workdir")
+    chosen = snapshot_indices(n, min(snapshot_points, n) if snapshot_every else 0, spec.seed)
+    snapshots = (snapshot_steps(spec.steps, snapshot_every), chosen[(chosen >= lo) & (chosen < hi)] - lo)
     recorder = _Recorder(
-        history_steps(0, spec.steps), block_steps(0, spec.steps, BLOCKS), members, hi - lo, folder
+        history_steps(0, spec.steps), block_steps(0, spec.steps, BLOCKS), members, hi - lo, folder, snapshots
     )
     sink = None
     if archive is None:
@@ -284,6 +349,8 @@ def run_shard(
         if sink is not None:
             sink.close()
     seconds = time.perf_counter() - start
+    if snapshot_every:
+        recorder.write_snapshots(snapshot_file(folder))
     counts = open_counts = None
     if transport:
         counts = ensemble.histograms().counts()
@@ -678,14 +745,19 @@ def check_merge(points: int, transport: bool = False, rows: int = 64) -> None:
 
 
 def _check_workers(
-    client: Any, spec: RunSpec, bounds: list[tuple[int, int]], transport: bool, on_disk: bool
+    client: Any,
+    spec: RunSpec,
+    bounds: list[tuple[int, int]],
+    transport: bool,
+    on_disk: bool,
+    snapshots: tuple[int, int] = (0, 0),
 ) -> None:
     """ResourceError, before any work, if the largest shard does not fit the smallest worker."""
     limits = _worker_memory(client)
     if not limits:
         raise ResourceError("the Dask cluster has no workers; start some (docs/cluster.md)")
     largest = max(hi - lo for lo, hi in bounds)
-    needed = shard_bytes(spec, largest, transport, on_disk)
+    needed = shard_bytes(spec, largest, transport, on_disk, snapshots)
     address, smallest = min(limits.items(), key=lambda item: item[1])
     if smallest and needed > smallest:
         rows = 1 if on_disk else len(history_steps(0, spec.steps))
@@ -697,14 +769,50 @@ def _check_workers(
         )
 
 
-def _claim_workdir(workdir: str | os.PathLike, spec: RunSpec, bounds: list, transport: bool) -> str:
+def _manifest(spec: RunSpec, bounds: list, transport: bool, snapshots: tuple[int, int]) -> dict:
+    """What ``run.json`` of a workdir holds: the run its shards belong to."""
+    import json
+
+    run = {k: v for k, v in json.loads(spec.to_json()).items() if k not in ("threads", "device")}
+    run.update(transport=transport, shards=[list(b) for b in bounds])
+    if snapshots[0]:
+        run.update(snapshot_every=snapshots[0], snapshot_points=snapshots[1])
+    return run
+
+
+#: The prefix of a run's folder in the shards folder beside ``out`` (:func:`_run_folder`).
+RUN_FOLDER = "run-"
+
+
+def _run_folder(run: dict) -> str:
+    """The name of the folder of the run ``run`` (:func:`_manifest`) in ``out + ".shards"``: the
+    same for the same run (the same command again continues it), another for another run (so a
+    run that replaces ``out`` never writes where the file it replaces reads)."""
+    import hashlib
+    import json
+
+    return RUN_FOLDER + hashlib.sha256(json.dumps(run, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _remove_other_runs(workdir: str) -> None:
+    """Remove the other runs' folders beside ``workdir`` (in ``out + ".shards"``), once ``out``
+    reads ``workdir``'s: the replaced file's shards, and what runs that never published left."""
+    import shutil
+
+    parent = os.path.dirname(workdir)
+    for name in os.listdir(parent):
+        path = os.path.join(parent, name)
+        if name.startswith(RUN_FOLDER) and path != workdir and os.path.isdir(path):
+            shutil.rmtree(path)
+
+
+def _claim_workdir(workdir: str | os.PathLike, run: dict) -> str:
     """``workdir`` as an absolute path, made if missing, with ``run.json`` naming the run its shards
-    belong to; ParameterError if it holds the shards of another run (its archives would be resumed)."""
+    belong to (:func:`_manifest`); ParameterError if it holds the shards of another run (its
+    archives would be resumed)."""
     import json
 
     workdir = os.path.abspath(os.fspath(workdir))
-    run = {k: v for k, v in json.loads(spec.to_json()).items() if k not in ("threads", "device")}
-    run.update(transport=transport, shards=[list(b) for b in bounds])
     manifest = os.path.join(workdir, "run.json")
     if os.path.exists(manifest):
         with open(manifest) as f:
@@ -733,6 +841,9 @@ def run_sharded(
     checkpoint_every: int | None = None,
     out: str | os.PathLike | None = None,
     progress: bool = False,
+    snapshot_every: int = 0,
+    snapshot_points: int = 1000,
+    force: bool = False,
 ) -> ShardedRun:
     """Run the ensemble of ``spec`` as ``shards`` Dask tasks and merge them (module docstring).
 
@@ -756,10 +867,20 @@ def run_sharded(
         Steps between the shards' checkpoints (with ``workdir``; default: the archive's).
     out : path, optional
         One archive of the whole run, written when it is merged (a new file; ``workdir``
-        defaults to ``out`` + ``".shards"``): the merged series and history, and the shards'
-        per-point data as virtual datasets over their archives (:mod:`warpratchet._cluster_archive`).
+        defaults to the run's own folder in ``out`` + ``".shards"``, named by the run,
+        :func:`_run_folder`): the merged series and history, and the shards' per-point data as
+        virtual datasets over their archives (:mod:`warpratchet._cluster_archive`).
     progress : bool
         A progress bar over the shards done, on stderr.
+    snapshot_every, snapshot_points : int
+        Steps between snapshots (0: none) of a fixed subsample of ``snapshot_points`` points, as
+        :class:`~warpratchet.archive.ArchiveSink` takes them: each shard takes those of its points
+        (with ``workdir``), and ``out`` exposes them as the single machine's ``/snapshots``.
+    force : bool
+        Replace an existing ``out``. It stays as it is, reading its own shards, until the new one
+        is complete and takes its name in one rename; with the default ``workdir`` the new run's
+        shards are in their own folder, and the other runs' folders in ``out`` + ``".shards"``
+        are removed after.
 
     Raises
     ------
@@ -775,27 +896,53 @@ def run_sharded(
     from .limits import check_kernel_range
 
     check_kernel_range(spec.params)
+    from .archive import schedule
+
+    if snapshot_every:  # chunk ends on the snapshots, as on one machine (ParameterError if not)
+        schedule(spec.points, spec.chunk_steps, snapshot_every, checkpoint_every)
+    points = _ensemble_size(spec)
+    snapshots = (snapshot_every, min(check_count("snapshot_points", snapshot_points, 1), points))
+    shared = workdir is None  # the default folder, beside out
     if out is not None:
         out = os.fspath(out)
-        if os.path.lexists(out):
-            raise ParameterError(f"out = {out} exists; choose a new path (nothing was run)")
+        if os.path.lexists(out) and not force:
+            raise ParameterError(
+                f"out = {out} exists; choose a new path or replace it with force=True (nothing was run)"
+            )
         if workdir is None:
             workdir = out + ".shards"
+    if snapshot_every and workdir is None:
+        raise ParameterError(
+            f"snapshot_every = {snapshot_every} needs out (or workdir): the snapshots go to files"
+        )
     client, owned = _connect(client)
     try:
-        points = _ensemble_size(spec)
         if shards is None:
             shards = max(1, len(client.scheduler_info()["workers"]))
         bounds = shard_bounds(points, min(check_count("shards", shards, 1, points), points))
-        _check_workers(client, spec, bounds, transport, workdir is not None)
+        _check_workers(client, spec, bounds, transport, workdir is not None, snapshots)
         check_merge(points, transport, len(history_steps(0, spec.steps)))
         if workdir is not None:
-            workdir = _claim_workdir(workdir, spec, bounds, transport)
+            run = _manifest(spec, bounds, transport, snapshots)
+            if shared:  # each run its own folder: a replaced out reads its own until the new one is out
+                workdir = os.path.join(workdir, _run_folder(run))
+            workdir = _claim_workdir(workdir, run)
         start = time.perf_counter()
         futures = [
             client.submit(
-                run_shard, spec, lo, hi, transport, list(observers), workdir, k, checkpoint_every, pure=False
-            )
+                run_shard,
+                spec,
+                lo,
+                hi,
+                transport,
+                list(observers),
+                workdir,
+                k,
+                checkpoint_every,
+                snapshot_every,
+                snapshots[1],
+                pure=False,
+            )  # fmt: skip
             for k, (lo, hi) in enumerate(bounds)
         ]
         import distributed
@@ -829,7 +976,9 @@ def run_sharded(
         if out is not None:
             from ._cluster_archive import write_merged
 
-            write_merged(out, merged, workdir, bounds)
+            write_merged(out, merged, workdir, bounds, snapshots, replace=force)
+            if shared:
+                _remove_other_runs(workdir)
         return merged
     finally:
         if owned:

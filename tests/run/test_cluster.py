@@ -269,7 +269,16 @@ def test_run_with_scheduler_prints_the_single_machine_numbers(capsys, cluster, t
     [
         (["--shards", "2"], "--shards needs --scheduler ADDRESS"),
         (["--workdir", "w"], "--workdir needs --scheduler ADDRESS"),
-        (["--scheduler", "tcp://127.0.0.1:1", "--snapshot-every", "5"], "--snapshot-every does not go with"),
+        (["--scheduler", "tcp://127.0.0.1:1", "--snapshot-every", "5"], "--snapshot-every needs --out FILE"),
+        (["--scheduler", "tcp://127.0.0.1:1", "--force"], "--force needs --out FILE"),
+        (
+            ["--scheduler", "tcp://127.0.0.1:1", "--rerun", "r.rrd"],
+            "--rerun does not go with --scheduler: its",
+        ),
+        (
+            ["--scheduler", "tcp://127.0.0.1:1", "--out", "o.h5", "--snapshot-points", "101"],
+            "is more than the",
+        ),
         (["--scheduler", "tcp://127.0.0.1:1", "--shards", "0"], "shards = 0 is outside the allowed range"),
     ],
 )
@@ -335,7 +344,7 @@ def test_run_with_scheduler_and_out_the_same_command_again_reports_it(capsys, cl
     out = str(tmp_path / "run.h5")
     flags = ("--scheduler", cluster.scheduler_address, "--shards", "2", "--out", out)
     first = run_json(capsys, *flags)
-    assert first["archive"] == out and first["workdir"] == out + ".shards"
+    assert first["archive"] == out and os.path.dirname(first["workdir"]) == out + ".shards"
     with open_archive(out) as arc:
         assert same_history(arc.history, references[False][1])
     stamp = os.stat(out).st_mtime_ns
@@ -421,4 +430,249 @@ def test_out_of_a_transport_run_holds_the_merged_transport_group(client, tmp_pat
     assert all(np.array_equal(state.carry[k], v) for k, v in expected.carry.items())
     assert np.array_equal(state.spread_steps, expected.spread_steps)
     assert exact(state.spread) == exact(expected.spread)
+    assert verify_archive(out)[0] == []
+
+
+# -- snapshots and --force -----------------------------------------------------------------------------
+SNAPSHOT_EVERY = 1500
+
+
+def single_machine_archive(path, snapshot_points: int, transport: bool = False) -> None:
+    """The single machine's archive of SPEC with snapshots, as ``warpratchet run --out`` writes it."""
+    from warpratchet.archive import ArchiveSink
+
+    kind = TransportEnsemble if transport else Ensemble
+    ensemble = kind.sample(SPEC.params, SPEC.points, SPEC.init, SPEC.seed, threads=2)
+    ensemble.threshold, ensemble.threshold_rule = SPEC.threshold, SPEC.threshold_rule
+    sink = ArchiveSink(
+        path, ensemble, snapshot_every=SNAPSHOT_EVERY, snapshot_points=snapshot_points,
+        chunk_steps=SPEC.chunk_steps, threshold=SPEC.threshold, threshold_rule=SPEC.threshold_rule,
+    )  # fmt: skip
+    try:
+        ensemble.run(SPEC.steps, [sink], chunk_steps=sink.chunk_steps)
+    finally:
+        sink.close()
+
+
+def snapshot_datasets(path) -> dict:
+    """Every dataset of ``/snapshots``: dtype, shape, dimension scales, units and long name, bits."""
+    import h5py
+
+    with h5py.File(path, "r") as f:
+        g = f["snapshots"]
+        return {
+            name: (
+                ds.dtype.str,
+                ds.shape,
+                [[scale.name for scale in dim.values()] for dim in ds.dims],
+                {k: ds.attrs[k] for k in ("units", "long_name")},
+                ds[()].tobytes(),
+            )  # fmt: skip
+            for name, ds in g.items()
+        }
+
+
+@pytest.mark.parametrize("shards, snapshot_points", [(1, 150), (2, 150), (3, 150), (7, 5)])
+def test_out_exposes_the_single_machines_snapshots_bit_for_bit(cluster, tmp_path, shards, snapshot_points):
+    """With 150 points every shard boundary cuts the subsample; with 7 shards and 5 points some
+    shards hold none of it."""
+    from warpratchet import open_archive
+    from warpratchet.archive import verify_archive
+    from warpratchet.cli import main
+
+    single, out = tmp_path / "single.h5", tmp_path / "run.h5"
+    single_machine_archive(single, snapshot_points)
+    if shards == 1:  # one shard holds the whole ensemble: a worker without the memory limit
+        with (
+            distributed.LocalCluster(n_workers=1, processes=False, dashboard_address=":0") as whole,
+            distributed.Client(whole) as client,
+        ):
+            run_sharded(
+                SPEC, client, 1, out=out, snapshot_every=SNAPSHOT_EVERY, snapshot_points=snapshot_points
+            )
+    else:
+        with distributed.Client(cluster) as client:
+            run_sharded(
+                SPEC, client, shards, out=out, snapshot_every=SNAPSHOT_EVERY, snapshot_points=snapshot_points
+            )
+    expected = snapshot_datasets(single)
+    assert snapshot_datasets(out) == expected and len(expected) > 2
+    with open_archive(single) as arc:
+        reference, settings, xr = arc.snapshots, arc.settings, arc.to_xarray("snapshots")
+    with open_archive(out) as arc:
+        snapshots = arc.snapshots
+        assert {k: arc.settings[k] for k in ("snapshot_every", "snapshot_points")} == {
+            k: settings[k] for k in ("snapshot_every", "snapshot_points")
+        }
+        ds = arc.to_xarray("snapshots")
+        from viz.record import replay
+
+        assert replay(arc, tmp_path / "replay.rrd").frames == [1500, 3000]
+    assert list(snapshots.steps) == [1500, 3000] and snapshots.indices.size == snapshot_points
+    assert exact(snapshots.__dict__) == exact(reference.__dict__)
+    assert ds.sizes == xr.sizes and all(exact(ds[k].values) == exact(xr[k].values) for k in xr.variables)
+    assert verify_archive(out)[0] == []
+    assert main(["inspect", str(out)]) == 0 and main(["verify", str(out)]) == 0
+
+
+def test_force_replaces_out_only_when_the_new_run_is_complete(capsys, cluster, tmp_path, references):
+    from warpratchet import open_archive
+    from warpratchet.archive import verify_archive
+
+    out = tmp_path / "run.h5"
+    other = RunSpec(K=3.0, b1=0.1, b2=0.01, points=300, steps=200, seed=4, threads=1)
+    with distributed.Client(cluster) as client:
+        run_sharded(other, client, 2, out=out)
+        with pytest.raises(RuntimeError, match="failed: ValueError: no luck"):
+            run_sharded(SPEC, client, 2, out=out, force=True, observers=[Fails()])
+    with open_archive(out) as arc:  # the failed run left the file and its shards as they were
+        assert (arc.points, arc.settings["seed"]) == (300, 4)
+    assert verify_archive(out)[0] == []
+    flags = ("--scheduler", cluster.scheduler_address, "--shards", "2", "--out", str(out))
+    assert "exists and is not an archive of this run" in refused(capsys, run_argv(*flags))
+    report = run_json(capsys, *flags, "--force", "--snapshot-every", "1500", "--snapshot-points", "10")
+    assert report["archive"] == str(out)
+    with open_archive(out) as arc:
+        assert same_history(arc.history, references[False][1])
+        assert list(arc.snapshots.steps) == [1500, 3000] and arc.checkpoint_step == SPEC.steps
+    assert verify_archive(out)[0] == [] and sorted(os.listdir(tmp_path)) == ["run.h5", "run.h5.shards"]
+    assert len(os.listdir(tmp_path / "run.h5.shards")) == 1  # the replaced run's shards are gone
+
+
+def archive_content(path) -> tuple:
+    """What an archive holds: its points and seed, its history's rows, its checkpoint's bits."""
+    from warpratchet import open_archive
+
+    with open_archive(path) as arc:
+        state, step = arc.checkpoint()
+        return arc.points, arc.settings["seed"], exact(arc.history.as_dict()), step, exact(state)
+
+
+def publishes_then_fails(real):
+    def publish(tmp, path, replace):
+        real(tmp, path, replace=replace)
+        raise KeyboardInterrupt("killed after the rename")
+
+    return publish
+
+
+def fails(*args, **kwargs):
+    raise KeyboardInterrupt("killed here")
+
+
+@pytest.mark.parametrize(
+    "where, published",
+    [
+        ("warpratchet._cluster_archive._write_snapshots", False),  # writing the new file
+        ("warpratchet._cluster_archive.sync_h5", False),  # making it durable
+        ("warpratchet.archive._writer.publish", False),  # just before the rename
+        ("warpratchet.archive._writer.publish", True),  # just after the rename
+        ("warpratchet.cluster._remove_other_runs", True),  # removing the replaced run's shards
+    ],
+)
+def test_force_killed_at_each_step_of_publishing_leaves_a_consistent_archive(
+    monkeypatch, client, tmp_path, where, published
+):
+    """The file at ``out`` reads its own run's shards at every instant: the old run's until the
+    rename, the new run's after; the same call again completes the replacement."""
+    import warpratchet.archive._writer as writer
+    from warpratchet.archive import verify_archive
+
+    out = tmp_path / "run.h5"
+    other = RunSpec(K=3.0, b1=0.1, b2=0.01, points=300, steps=200, seed=4, threads=1)
+    run_sharded(other, client, 2, out=out)
+    old = archive_content(out)
+    new_run = dict(out=out, force=True, snapshot_every=SNAPSHOT_EVERY, snapshot_points=10)
+    with monkeypatch.context() as patched:
+        fault = publishes_then_fails(writer.publish) if published and where.endswith("publish") else fails
+        patched.setattr(where, fault)
+        with pytest.raises(KeyboardInterrupt):
+            run_sharded(SPEC, client, 2, **new_run)
+    assert verify_archive(out)[0] == []
+    content = archive_content(out)
+    assert (content == old) != published and content[:2] == (
+        (SPEC.points, SPEC.seed) if published else (300, 4)
+    )
+    run_sharded(SPEC, client, 2, **new_run)  # the same call again
+    assert verify_archive(out)[0] == [] and archive_content(out)[:2] == (SPEC.points, SPEC.seed)
+    assert len(os.listdir(f"{out}.shards")) == 1
+
+
+def test_a_shard_continued_from_its_archive_keeps_its_snapshots(tmp_path):
+    """The snapshot at step 1500, taken before the stop, comes back from the shard's records."""
+    import h5py
+
+    from warpratchet.cluster import snapshot_file
+
+    def snapshots(folder):
+        with h5py.File(snapshot_file(folder), "r") as f:
+            return {name: f[name][()].tobytes() for name in f}
+
+    through = run_shard(SPEC, 500, 1300, False, [], tmp_path / "a", 1, 500, SNAPSHOT_EVERY, 150)
+    with pytest.raises(RuntimeError, match="stopped at step 1500"):
+        run_shard(SPEC, 500, 1300, False, [StopsAt(1500)], tmp_path / "b", 1, 500, SNAPSHOT_EVERY, 150)
+    notes = StopsAt(SPEC.steps + 1)
+    again = run_shard(SPEC, 500, 1300, False, [notes], tmp_path / "b", 1, 500, SNAPSHOT_EVERY, 150)
+    assert notes.began == [1500]
+    assert snapshots(again.folder) == snapshots(through.folder) and len(snapshots(through.folder)) > 2
+
+
+def test_a_shards_memory_counts_the_snapshots_it_keeps():
+    from warpratchet.archive._format import SNAPSHOT_FIELDS
+
+    more = shard_bytes(SPEC, 700, snapshots=(SNAPSHOT_EVERY, 1000)) - shard_bytes(SPEC, 700)
+    assert more == 2 * len(SNAPSHOT_FIELDS) * 8 * 700  # two snapshots of at most its 700 points
+
+
+def test_a_missing_shard_file_is_refused_by_every_reader_and_flagged_by_verify(capsys, cluster, tmp_path):
+    """HDF5 reads a virtual dataset whose source file is gone as fill values: every route that reads
+    the merged archive names the missing file instead (``/initial``, the checkpoint, the snapshots)."""
+    import glob
+
+    from warpratchet import open_archive
+    from warpratchet.archive import ArchiveError, verify_archive
+    from warpratchet.cli import main
+
+    out = str(tmp_path / "run.h5")
+    flags = ("--scheduler", cluster.scheduler_address, "--shards", "2", "--out", out)
+    snap = ("--snapshot-every", str(SNAPSHOT_EVERY), "--snapshot-points", "10")
+    first = run_json(capsys, *flags, *snap)
+    for pattern in ("shard-0001.h5", "shard-0001.records/snapshots.h5"):
+        [moved] = glob.glob(os.path.join(out + ".shards", "**", pattern), recursive=True)
+        os.rename(moved, tmp_path / "away.h5")
+        name = os.path.basename(moved)
+        with pytest.raises(ArchiveError, match=f"reads from .*{name}, which is missing"):
+            open_archive(out)
+        problems = verify_archive(out)[0]
+        assert problems and all(f"{name}, which is missing" in p for p in problems)
+        assert main(["verify", out]) == 1 and f"{name}, which is missing" in capsys.readouterr().out
+        for argv in (["inspect", out], ["resume", out, "--steps", "4000"], run_argv(*flags, *snap)):
+            assert f"{name}, which is missing" in refused(capsys, argv)
+        os.rename(tmp_path / "away.h5", moved)
+        assert verify_archive(out)[0] == [] and main(["inspect", out]) == 0
+        capsys.readouterr()
+        again = run_json(capsys, *flags, *snap)
+        timing = ("seconds", "point_steps_per_second")
+        assert {k: v for k, v in again.items() if k not in timing} == {
+            k: v for k, v in first.items() if k not in timing
+        }
+
+
+def test_out_of_a_transport_run_with_snapshots_equals_the_single_machines(client, tmp_path):
+    from warpratchet import open_archive
+    from warpratchet.archive import verify_archive
+
+    def transport(path) -> tuple:
+        with open_archive(path) as arc:
+            _, step, state = arc.checkpoint_with_transport()
+            carry = {k: exact(v) for k, v in state.carry.items()}
+            held = (exact(state.counts), carry, exact(state.spread_steps), exact(state.spread))
+            return exact(arc.transport), step, held
+
+    single, out = tmp_path / "single.h5", tmp_path / "run.h5"
+    single_machine_archive(single, 150, transport=True)
+    run_sharded(SPEC, client, 3, transport=True, out=out, snapshot_every=SNAPSHOT_EVERY, snapshot_points=150)
+    expected = snapshot_datasets(single)
+    assert snapshot_datasets(out) == expected and len(expected) > 2
+    assert transport(out) == transport(single)
     assert verify_archive(out)[0] == []

@@ -41,7 +41,7 @@ from ._format import (
     ArchiveWarning,
     NonFiniteStateError,
 )
-from ._reader import Archive, Snapshots, open_archive
+from ._reader import Archive, Snapshots, VirtualSourceError, open_archive
 from ._recovery import verify_archive
 from ._writer import ArchiveSink
 
@@ -59,6 +59,7 @@ __all__ = [
     "SWMR_READ_ATTEMPTS",
     "ArchiveError",
     "ArchiveWarning",
+    "VirtualSourceError",
     "Archive",
     "Snapshots",
     "ArchiveSink",

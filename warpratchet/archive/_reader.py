@@ -87,6 +87,74 @@ __all__ = [
 ]
 
 
+class VirtualSourceError(ArchiveError):
+    """A virtual dataset's source file is missing or unreadable (its points would read as fill values)."""
+
+
+def virtual_source_path(archive: str, name: str) -> str:
+    """The file HDF5 reads for a virtual dataset's source file ``name`` in the file ``archive``.
+
+    As HDF5 resolves it: ``"."`` is ``archive`` itself, an absolute path is itself, a relative
+    one is looked for under ``$HDF5_VDS_PREFIX`` (its ``${ORIGIN}`` the archive's folder), then
+    the archive's folder, then the working directory; the archive's folder when none exists.
+    """
+    if name == ".":
+        return archive
+    if os.path.isabs(name):
+        return name
+    origin = os.path.dirname(os.path.abspath(archive))
+    prefix = os.environ.get("HDF5_VDS_PREFIX", "").replace("${ORIGIN}", origin)
+    candidates = [os.path.join(origin, name), os.path.abspath(name)]
+    if prefix:
+        candidates.insert(0, os.path.join(prefix, name))
+    return next((c for c in candidates if os.path.exists(c)), candidates[-2])
+
+
+def missing_virtual_sources(f: h5py.File, archive: str) -> list[str]:
+    """One line for each virtual dataset of ``f`` (the file at ``archive``) whose source file is
+    missing or unreadable, or lacks its source dataset: HDF5 reads such a dataset's points as
+    fill values without an error, so a reader refuses it instead."""
+    found: list[tuple[str, str, str]] = []  # (virtual dataset, source file, source dataset)
+
+    def visit(group: h5py.Group) -> None:  # past damaged objects: what else checks reports them
+        try:
+            names = list(group)
+        except (OSError, RuntimeError, KeyError):
+            return
+        for name in names:
+            try:
+                obj = group[name]
+                if isinstance(obj, h5py.Group):
+                    visit(obj)
+                elif isinstance(obj, h5py.Dataset) and obj.is_virtual:
+                    found.extend((obj.name, src.file_name, src.dset_name) for src in obj.virtual_sources())
+            except (OSError, RuntimeError, KeyError, ValueError):
+                continue
+
+    visit(f)
+    problems: list[str] = []
+    opened: dict[str, h5py.File | str] = {}  # each source file, open, or why it does not open
+    try:
+        for where, name, dataset in found:
+            path = virtual_source_path(archive, name)
+            if path not in opened:
+                try:
+                    opened[path] = h5py.File(path, "r", locking=False)
+                except OSError as exc:
+                    exists = os.path.exists(path)
+                    opened[path] = f"unreadable ({first_line(exc)})" if exists else "missing"
+            src = opened[path]
+            if isinstance(src, str):
+                problems.append(f"{where} reads from {path}, which is {src}")
+            elif not isinstance(src.get(dataset), h5py.Dataset):
+                problems.append(f"{where} reads from {path}, which has no dataset {dataset}")
+    finally:
+        for src in opened.values():
+            if not isinstance(src, str):
+                src.close()
+    return problems
+
+
 class Archive:
     """A read-only view of an archive; see :func:`open_archive`.
 
@@ -95,7 +163,9 @@ class Archive:
     reader follows a run that is still being written.
     """
 
-    def __init__(self, path: str | os.PathLike, *, locking: bool | None = None) -> None:
+    def __init__(
+        self, path: str | os.PathLike, *, locking: bool | None = None, check_sources: bool = True
+    ) -> None:
         self.path = os.fspath(path)
         if not os.path.exists(self.path):
             raise ArchiveError(f"{self.path}: no such archive")
@@ -114,6 +184,13 @@ class Archive:
             ) from None
         try:
             self._read_metadata()
+            if check_sources:
+                missing = missing_virtual_sources(self._file, self.path)
+                if missing:
+                    raise VirtualSourceError(
+                        f"{self.path}: {missing[0]}; put the file back where it was "
+                        "(its points would read as fill values)"
+                    )
         except BaseException:
             self._file.close()
             raise

@@ -62,7 +62,7 @@ from ._format import (
     kernel_constants,
     stored_name,
 )
-from ._reader import Archive, Snapshots
+from ._reader import Archive, Snapshots, missing_virtual_sources
 from ._rows import fill_rows, listed, nonfinite, read_counter, reading, slot_step
 
 __all__ = [
@@ -343,7 +343,8 @@ def verify_archive(path: str | os.PathLike) -> tuple[list[str], dict[str, Any]]:
     path = os.fspath(path)
     problems: list[str] = []
     # The claim excludes every writer, so HDF5's own lock (which our claim would refuse) is not taken.
-    with _alone(path), Archive(path, locking=False) as arc:
+    with _alone(path), Archive(path, locking=False, check_sources=False) as arc:
+        problems.extend(missing_virtual_sources(arc.h5, path))
         counts = read_everything(arc.h5, path, problems)
         checked = {"format": "warpratchet-archive", "format_version": arc.format_version, **counts}
         for key, where in COUNTERS[arc.format_version].items():

@@ -14,6 +14,7 @@ import time
 
 from ..spec import RunSpec
 from .common import UsageError, count_type
+from .sinks import _first_given, check_schedule
 
 __all__ = ["add_cluster_flags", "check_cluster_flags", "command"]
 
@@ -48,15 +49,19 @@ def check_cluster_flags(args: argparse.Namespace) -> bool:
             if given is not None:
                 raise UsageError(f"{flag} needs --scheduler ADDRESS (the Dask cluster to run on)")
         return False
-    refused = (
-        ("--rerun", getattr(args, "rerun", None)),
-        ("--snapshot-every", args.snapshot_every),
-        ("--snapshot-points", args.snapshot_points),
-        ("--force", args.force),
-    )
-    for flag, given in refused:
-        if given:
-            raise UsageError(f"{flag} does not go with --scheduler (docs/cluster.md)")
+    for flag in ("--rerun", "--rerun-spawn"):
+        if getattr(args, flag[2:].replace("-", "_"), None):
+            raise UsageError(
+                f"{flag} does not go with --scheduler: its frames are drawn from the whole ensemble in "
+                "one process; take snapshots (--out FILE --snapshot-every STEPS) and replay them with "
+                "python -m viz record FILE (docs/cluster.md)"
+            )
+    if args.out is None:
+        _first_given(
+            [("--force", args.force), ("--snapshot-every", args.snapshot_every),
+             ("--snapshot-points", args.snapshot_points)],
+            "--out FILE",
+        )  # fmt: skip
     return True
 
 
@@ -67,12 +72,14 @@ _SAME_RUN = ("K", "b1", "b2", "init", "points", "seed", "steps", "threshold", "t
 
 def _same_run(out: str, spec: RunSpec) -> None:
     """UsageError unless ``out`` is an archive of this run (the same command again)."""
-    from ..archive import ArchiveError, open_archive
+    from ..archive import ArchiveError, VirtualSourceError, open_archive
 
     why = f"{out} exists and is not an archive of this run; choose another file"
     try:
         with open_archive(out) as arc:
             stored = arc.spec
+    except VirtualSourceError as exc:  # this run's archive, perhaps, but its shards are not all there
+        raise UsageError(str(exc)) from None
     except ArchiveError:
         raise UsageError(why) from None
     if stored is None or any(getattr(stored, k) != getattr(spec, k) for k in _SAME_RUN):
@@ -90,11 +97,14 @@ def command(args: argparse.Namespace, spec: RunSpec) -> int:
         raise UsageError(
             "--scheduler needs dask.distributed: pip install 'warpratchet[distributed]'"
         ) from None
+    from ..cluster import shards_folder
+
     out, workdir = args.out, args.workdir
-    if out is not None and workdir is None:
-        workdir = out + ".shards"
-    if out is not None and os.path.lexists(out):
+    if out is not None:
+        check_schedule(args, spec)
+    if out is not None and os.path.lexists(out) and not args.force:
         _same_run(out, spec)
+        workdir = shards_folder(out)  # where this run's shards are: the folder the file reads
         _say(args, f"{out} holds this run already: its report, merged again from the shards in {workdir}")
         write = None
     else:
@@ -107,8 +117,10 @@ def command(args: argparse.Namespace, spec: RunSpec) -> int:
     with client:
         start = time.perf_counter()
         merged = run_sharded(
-            spec, client, args.shards, transport=args.transport, workdir=workdir, out=write,
-            checkpoint_every=args.checkpoint_every, progress=not args.quiet,
+            spec, client, args.shards, transport=args.transport, out=write,
+            workdir=workdir,  # None: run_sharded knows the default
+            checkpoint_every=args.checkpoint_every, progress=not args.quiet, force=args.force,
+            snapshot_every=args.snapshot_every, snapshot_points=args.snapshot_points or 1000,
         )  # fmt: skip
         seconds = time.perf_counter() - start
     report = run_report(merged, seconds, spec.steps, spec.threshold, spec.threshold_rule)
@@ -117,6 +129,8 @@ def command(args: argparse.Namespace, spec: RunSpec) -> int:
     report.update(history_report(merged.history, spec.threshold_rule))
     report["shards"] = merged.shards
     report["scheduler"] = args.scheduler
+    if write is not None:
+        workdir = shards_folder(out)
     if workdir is not None:
         report["workdir"] = workdir
     if out is not None:

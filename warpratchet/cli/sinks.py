@@ -77,8 +77,6 @@ def add_archive_flags(p: argparse.ArgumentParser) -> None:
 
 def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | None:
     """ArchiveSink keywords from the run flags (None without --out); checks them up front."""
-    from ..archive import schedule
-
     if args.out is None:
         _first_given(
             [
@@ -91,12 +89,7 @@ def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | No
             "--out FILE",
         )
         return None
-    schedule(spec.points, spec.chunk_steps, args.snapshot_every, args.checkpoint_every)  # ValueError if bad
-    if args.snapshot_points is not None and args.snapshot_points > spec.points:
-        raise UsageError(
-            f"--snapshot-points {args.snapshot_points} is more than the run's {spec.points} points "
-            f"(allowed range 1 <= snapshot_points <= {spec.points})"
-        )
+    check_schedule(args, spec)
     if os.path.lexists(args.out) and not args.force:
         return {"resume": _resumable(args, spec)}
     return {
@@ -109,6 +102,18 @@ def archive_plan(args: argparse.Namespace, spec: RunSpec) -> dict[str, Any] | No
         "threshold": spec.threshold,
         "threshold_rule": spec.threshold_rule,
     }
+
+
+def check_schedule(args: argparse.Namespace, spec: RunSpec) -> None:
+    """UsageError (or ValueError) for archive schedule flags that do not go with ``spec``."""
+    from ..archive import schedule
+
+    schedule(spec.points, spec.chunk_steps, args.snapshot_every, args.checkpoint_every)  # ValueError if bad
+    if args.snapshot_points is not None and args.snapshot_points > spec.points:
+        raise UsageError(
+            f"--snapshot-points {args.snapshot_points} is more than the run's {spec.points} points "
+            f"(allowed range 1 <= snapshot_points <= {spec.points})"
+        )
 
 
 def _resumable(args: argparse.Namespace, spec: RunSpec) -> int:
