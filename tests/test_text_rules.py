@@ -92,20 +92,30 @@ def test_docstrings_and_comments_narrate_no_history(rule):
     assert found == [], f"{rule}: move it to benchmarks/README.md or the commit body"
 
 
+#: Per rule, lines it must refuse and ordinary prose it must let pass.
+EXAMPLES = {
+    "issue": {
+        "the run's history (issue 15)": "no warning is issued here",
+        "see issues 12 and 14": "Issue an UnreliableWarning",
+    },
+    "a date": {"measured 2026-11-26 on the EPYC": "seconds since 1970 (a count)"},
+    "a measured timing": {
+        "cost ~12 ms per launch of 10^6 points": "retries ~2 ms apart",
+        "best launch 177 ms (16) vs 171 ms (8)": "backing off to 36 s a try",
+        "reaches 775 M point-steps/s": "speed in point-steps per second",
+    },
+    "a former state": {
+        "before: scalar Warp step per lane": "before the first run",
+        "8 lanes (before: 171 instructions)": "printed on the line before: a usage line",
+        "it was params.check_real, now errors": "the state now moves on",
+        "~12 ms per launch; now ~2 ms": "what the flag is called now",
+    },
+}
+
+
 @pytest.mark.parametrize(
     ("rule", "refused", "allowed"),
-    [
-        ("issue", "the run's history (issue 15)", "no warning is issued here"),
-        ("issue", "see issues 12 and 14", "Issue an UnreliableWarning"),
-        ("a date", "measured 2026-11-26 on the EPYC", "seconds since 1970 (a count)"),
-        ("a measured timing", "cost ~12 ms per launch of 10^6 points", "retries ~2 ms apart"),
-        ("a measured timing", "best launch 177 ms (16) vs 171 ms (8)", "backing off to 36 s a try"),
-        ("a measured timing", "reaches 775 M point-steps/s", "speed in point-steps per second"),
-        ("a former state", "before: scalar Warp step per lane", "before the first run"),
-        ("a former state", "8 lanes (before: 171 instructions)", "printed on the line before: a usage line"),
-        ("a former state", "it was params.check_real, now errors", "the state now moves on"),
-        ("a former state", "~12 ms per launch; now ~2 ms", "what the flag is called now"),
-    ],
+    [(rule, refused, allowed) for rule, pairs in EXAMPLES.items() for refused, allowed in pairs.items()],
 )
 def test_each_rule_refuses_what_it_names_and_passes_ordinary_prose(rule, refused, allowed):
     pattern = ISSUE if rule == "issue" else NARRATION[rule]
