@@ -12,12 +12,11 @@ twice the steps stays twice), the same for ``points=``/``steps=``/``.run(N`` in 
 ``python -m viz`` is ``python -m warpratchet_viz`` outside the source folder, as the README
 says, and ``python benchmarks/...`` runs the checkout's script.
 
-A plain ``warpratchet ...`` command (no pipe, redirection or quoting; not ``--rerun``, whose
-recording closes at process exit) runs in one Python process per doc (:data:`WORKER`, in the same
-folder), through :func:`warpratchet.cli.main` as the installed script calls it, with its own
-file descriptors 0-2: its exit status and output are the command's, without an interpreter, Warp
-and its kernels started again for each (test_cli_core starts the script itself). Everything
-else runs in its own process.
+A plain ``warpratchet ...`` or ``python -m warpratchet_viz ...`` command (no pipe, redirection or
+quoting; no rerun recording, which closes at process exit) runs in one Python process per doc
+(:data:`WORKER`, in the same folder), with its own file descriptors 0-2: its exit status and
+output are the command's, without an interpreter, Warp and its kernels started again for each
+(test_cli_core starts the script itself). Everything else runs in its own process.
 
 Left out, each for its stated reason (:data:`SKIPPED`): installs, the test suite itself, the
 rerun viewer, a Dask cluster or batch system, and the two analyses that take minutes.
@@ -102,15 +101,28 @@ def commands(text: str) -> list[tuple[str, str]]:
     return out
 
 
-#: A command that :data:`WORKER` runs: the shell would only split it into words.
-IN_WORKER = re.compile(r"warpratchet (?!.*--rerun)[^|<>;&`$()'\"*?~\\]*")
+#: A command that :data:`WORKER` runs: the shell would only split it into words (the rerun
+#: recordings of ``--rerun``, ``scenes`` and ``record`` close at process exit).
+IN_WORKER = re.compile(
+    r"(warpratchet (?!.*--rerun)|python -m warpratchet_viz(\.report)? (?!scenes|record))[^|<>;&`$()'\"*?~\\]*"
+)
 
-#: Runs ``warpratchet.cli.main(argv)`` for each JSON ``argv`` line on stdin, its stdin empty and its
-#: stdout and stderr (file descriptors 1, 2: Python's and any library's) in temporary files, and
-#: answers with a JSON line ``{"returncode", "stdout", "stderr"}`` on the stdout it started with.
+#: Runs each JSON line of words on stdin, ``warpratchet ARGS`` as ``warpratchet.cli.main(ARGS)``
+#: (what the installed script calls) and ``python -m MODULE ARGS`` as :func:`runpy.run_module`;
+#: its stdin empty and its stdout and stderr (file descriptors 1, 2: Python's and any library's)
+#: in temporary files. Answers with a JSON line ``{"returncode", "stdout", "stderr"}`` on the
+#: stdout it started with.
 WORKER = r"""
-import json, os, sys, tempfile, traceback
+import json, os, runpy, sys, tempfile, traceback
 from warpratchet.cli import main
+
+
+def command(words):
+    if words[0] == "warpratchet":
+        return main(words[1:])
+    sys.argv = words[2:]
+    runpy.run_module(words[2], run_name="__main__", alter_sys=True)
+    return 0
 
 requests, replies = os.fdopen(os.dup(0)), os.fdopen(os.dup(1), "w")
 os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
@@ -119,7 +131,7 @@ for line in requests:
         sys.stdout.flush(), sys.stderr.flush()
         os.dup2(out.fileno(), 1), os.dup2(err.fileno(), 2)
         try:
-            returncode = main(json.loads(line))
+            returncode = command(json.loads(line))
         except SystemExit as exc:
             returncode = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
         except BaseException:
@@ -143,7 +155,7 @@ class Worker:
         )
 
     def run(self, command: str) -> subprocess.CompletedProcess:
-        self.proc.stdin.write(json.dumps(shlex.split(command)[1:]) + "\n")
+        self.proc.stdin.write(json.dumps(shlex.split(command)) + "\n")
         self.proc.stdin.flush()
         line = self.proc.stdout.readline()
         assert line, f"the worker process ended (exit {self.proc.wait()}) running: {command}"
