@@ -27,6 +27,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import select
 import shlex
 import subprocess
 import sys
@@ -146,7 +147,8 @@ for line in requests:
 
 
 class Worker:
-    """One :data:`WORKER` process in ``cwd``; :meth:`run` is :func:`subprocess.run` of a command."""
+    """One :data:`WORKER` process in ``cwd``; :meth:`run` is :func:`subprocess.run` of a command.
+    A context manager: it leaves with the process ended (killed if the block raised)."""
 
     def __init__(self, cwd: Path, env: dict):
         argv = [sys.executable, "-c", WORKER]
@@ -154,18 +156,26 @@ class Worker:
             argv, cwd=cwd, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
         )
 
-    def run(self, command: str) -> subprocess.CompletedProcess:
+    def __enter__(self) -> Worker:
+        return self
+
+    def __exit__(self, kind, *_) -> None:
+        if kind is not None:
+            self.proc.kill()
+        self.proc.stdin.close()
+        returncode = self.proc.wait(timeout=900)
+        self.proc.stdout.close()
+        assert kind is not None or returncode == 0, f"the worker process exited {returncode}"
+
+    def run(self, command: str, timeout: float = 900) -> subprocess.CompletedProcess:
         self.proc.stdin.write(json.dumps(shlex.split(command)) + "\n")
         self.proc.stdin.flush()
+        if not select.select([self.proc.stdout], [], [], timeout)[0]:
+            raise subprocess.TimeoutExpired(command, timeout)
         line = self.proc.stdout.readline()
         assert line, f"the worker process ended (exit {self.proc.wait()}) running: {command}"
         answer = json.loads(line)
         return subprocess.CompletedProcess(command, answer["returncode"], answer["stdout"], answer["stderr"])
-
-    def close(self) -> None:
-        self.proc.stdin.close()
-        assert self.proc.wait(timeout=900) == 0
-        self.proc.stdout.close()
 
 
 def _skipped(code: str) -> str | None:
@@ -179,22 +189,25 @@ def test_the_doc_runs_in_one_empty_folder(doc, tmp_path):
     pytest.importorskip("xarray", reason="the archive docs use the xarray extra")
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
     ran, skipped = 0, []
-    worker = Worker(tmp_path, env)
-    for kind, code in commands((ROOT / doc).read_text()):
-        why = _skipped(code)
-        if why is not None:
-            skipped.append(why)
-            continue
-        code = shrink(code)
-        argv = ["bash", "-euo", "pipefail", "-c", code] if kind == "bash" else [sys.executable, "-c", code]
-        if kind == "bash" and IN_WORKER.fullmatch(code):
-            proc = worker.run(code)
-        else:
-            proc = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
-        assert proc.returncode == 0, f"{doc}: {code}\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}"
-        assert kind == "bash" or proc.stdout.strip(), f"{doc}: a Python block prints nothing:\n{code}"
-        ran += 1
-    worker.close()
+    with Worker(tmp_path, env) as worker:
+        for kind, code in commands((ROOT / doc).read_text()):
+            why = _skipped(code)
+            if why is not None:
+                skipped.append(why)
+                continue
+            code = shrink(code)
+            argv = (
+                ["bash", "-euo", "pipefail", "-c", code] if kind == "bash" else [sys.executable, "-c", code]
+            )
+            if kind == "bash" and IN_WORKER.fullmatch(code):
+                proc = worker.run(code)
+            else:
+                proc = subprocess.run(
+                    argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900
+                )
+            assert proc.returncode == 0, f"{doc}: {code}\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}"
+            assert kind == "bash" or proc.stdout.strip(), f"{doc}: a Python block prints nothing:\n{code}"
+            ran += 1
     assert ran >= (25 if doc == "README.md" else 3), (ran, skipped)
 
 
