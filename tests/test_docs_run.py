@@ -12,14 +12,23 @@ twice the steps stays twice), the same for ``points=``/``steps=``/``.run(N`` in 
 ``python -m viz`` is ``python -m warpratchet_viz`` outside the source folder, as the README
 says, and ``python benchmarks/...`` runs the checkout's script.
 
+A plain ``warpratchet ...`` or ``python -m warpratchet_viz ...`` command (no pipe, redirection or
+quoting; no rerun recording, which closes at process exit) runs in one Python process per doc
+(:data:`WORKER`, in the same folder), with its own file descriptors 0-2: its exit status and
+output are the command's, without an interpreter, Warp and its kernels started again for each
+(test_cli_core starts the script itself). Everything else runs in its own process.
+
 Left out, each for its stated reason (:data:`SKIPPED`): installs, the test suite itself, the
 rerun viewer, a Dask cluster or batch system, and the two analyses that take minutes.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import re
+import select
+import shlex
 import subprocess
 import sys
 from pathlib import Path
@@ -93,6 +102,82 @@ def commands(text: str) -> list[tuple[str, str]]:
     return out
 
 
+#: A command that :data:`WORKER` runs: the shell would only split it into words (the rerun
+#: recordings of ``--rerun``, ``scenes`` and ``record`` close at process exit).
+IN_WORKER = re.compile(
+    r"(warpratchet (?!.*--rerun)|python -m warpratchet_viz(\.report)? (?!scenes|record))[^|<>;&`$()'\"*?~\\]*"
+)
+
+#: Runs each JSON line of words on stdin, ``warpratchet ARGS`` as ``warpratchet.cli.main(ARGS)``
+#: (what the installed script calls) and ``python -m MODULE ARGS`` as :func:`runpy.run_module`;
+#: its stdin empty and its stdout and stderr (file descriptors 1, 2: Python's and any library's)
+#: in temporary files. Answers with a JSON line ``{"returncode", "stdout", "stderr"}`` on the
+#: stdout it started with.
+WORKER = r"""
+import json, os, runpy, sys, tempfile, traceback
+from warpratchet.cli import main
+
+
+def command(words):
+    if words[0] == "warpratchet":
+        return main(words[1:])
+    sys.argv = words[2:]
+    runpy.run_module(words[2], run_name="__main__", alter_sys=True)
+    return 0
+
+requests, replies = os.fdopen(os.dup(0)), os.fdopen(os.dup(1), "w")
+os.dup2(os.open(os.devnull, os.O_RDONLY), 0)
+for line in requests:
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        sys.stdout.flush(), sys.stderr.flush()
+        os.dup2(out.fileno(), 1), os.dup2(err.fileno(), 2)
+        try:
+            returncode = command(json.loads(line))
+        except SystemExit as exc:
+            returncode = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+        except BaseException:
+            traceback.print_exc()
+            returncode = 1
+        sys.stdout.flush(), sys.stderr.flush()
+        out.seek(0), err.seek(0)
+        answer = {"returncode": returncode, "stdout": out.read(), "stderr": err.read()}
+    replies.write(json.dumps(answer) + "\n")
+    replies.flush()
+"""
+
+
+class Worker:
+    """One :data:`WORKER` process in ``cwd``; :meth:`run` is :func:`subprocess.run` of a command.
+    A context manager: it leaves with the process ended (killed if the block raised)."""
+
+    def __init__(self, cwd: Path, env: dict):
+        argv = [sys.executable, "-c", WORKER]
+        self.proc = subprocess.Popen(
+            argv, cwd=cwd, env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True
+        )
+
+    def __enter__(self) -> Worker:
+        return self
+
+    def __exit__(self, kind, *_) -> None:
+        if kind is not None:
+            self.proc.kill()
+        self.proc.stdin.close()
+        returncode = self.proc.wait(timeout=900)
+        self.proc.stdout.close()
+        assert kind is not None or returncode == 0, f"the worker process exited {returncode}"
+
+    def run(self, command: str, timeout: float = 900) -> subprocess.CompletedProcess:
+        self.proc.stdin.write(json.dumps(shlex.split(command)) + "\n")
+        self.proc.stdin.flush()
+        if not select.select([self.proc.stdout], [], [], timeout)[0]:
+            raise subprocess.TimeoutExpired(command, timeout)
+        line = self.proc.stdout.readline()
+        assert line, f"the worker process ended (exit {self.proc.wait()}) running: {command}"
+        answer = json.loads(line)
+        return subprocess.CompletedProcess(command, answer["returncode"], answer["stdout"], answer["stderr"])
+
+
 def _skipped(code: str) -> str | None:
     return next((why for pattern, why in SKIPPED.items() if re.search(pattern, code)), None)
 
@@ -104,17 +189,25 @@ def test_the_doc_runs_in_one_empty_folder(doc, tmp_path):
     pytest.importorskip("xarray", reason="the archive docs use the xarray extra")
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
     ran, skipped = 0, []
-    for kind, code in commands((ROOT / doc).read_text()):
-        why = _skipped(code)
-        if why is not None:
-            skipped.append(why)
-            continue
-        code = shrink(code)
-        argv = ["bash", "-euo", "pipefail", "-c", code] if kind == "bash" else [sys.executable, "-c", code]
-        proc = subprocess.run(argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
-        assert proc.returncode == 0, f"{doc}: {code}\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}"
-        assert kind == "bash" or proc.stdout.strip(), f"{doc}: a Python block prints nothing:\n{code}"
-        ran += 1
+    with Worker(tmp_path, env) as worker:
+        for kind, code in commands((ROOT / doc).read_text()):
+            why = _skipped(code)
+            if why is not None:
+                skipped.append(why)
+                continue
+            code = shrink(code)
+            argv = (
+                ["bash", "-euo", "pipefail", "-c", code] if kind == "bash" else [sys.executable, "-c", code]
+            )
+            if kind == "bash" and IN_WORKER.fullmatch(code):
+                proc = worker.run(code)
+            else:
+                proc = subprocess.run(
+                    argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900
+                )
+            assert proc.returncode == 0, f"{doc}: {code}\n{proc.stdout[-2000:]}\n{proc.stderr[-2000:]}"
+            assert kind == "bash" or proc.stdout.strip(), f"{doc}: a Python block prints nothing:\n{code}"
+            ran += 1
     assert ran >= (25 if doc == "README.md" else 3), (ran, skipped)
 
 

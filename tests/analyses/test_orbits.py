@@ -87,8 +87,14 @@ def brute_force(p: MapParams, m: int) -> set[frozenset]:
     symbols = symbol_table(len(kicks))
     right = 1.0 - p.b2
     keep = np.ones(n, dtype=bool)
+    # The words are closed under rotation: each rotation's map is that of another row.
+    code = len(SYMBOLS) ** np.arange(m)
+    row_of = np.empty(n, dtype=np.int64)
+    row_of[words @ code] = np.arange(n)
+    all_A, all_b = compose(words, kicks)
     for r in range(m):  # rotation r starts with symbol r
-        A, b = compose(np.roll(words, -r, axis=1), kicks)
+        row = row_of[np.roll(words, -r, axis=1) @ code]
+        A, b = all_A[row], all_b[row]
         x, q, det = fixed_points(A, b)
         with np.errstate(divide="ignore"):
             inverse_norm = (np.abs(A - np.eye(2)).sum(-1).max(-1) + 1.0) / np.abs(det)
