@@ -88,7 +88,7 @@ def brute_force(p: MapParams, m: int) -> set[frozenset]:
     right = 1.0 - p.b2
     keep = np.ones(n, dtype=bool)
     # The words are closed under rotation: each rotation's map is that of another row.
-    code = len(SYMBOLS) ** np.arange(m)
+    code = len(symbols) ** np.arange(m)
     row_of = np.empty(n, dtype=np.int64)
     row_of[words @ code] = np.arange(n)
     all_A, all_b = compose(words, kicks)
