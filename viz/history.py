@@ -99,8 +99,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("archive", help="an archive of warpratchet run --out")
     parser.add_argument("-o", "--out", required=True, help="the figure, .png or .pdf")
     parser.add_argument("--dpi", type=int, default=150, help="PNG resolution (default 150)")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out")
 
     def body(args: argparse.Namespace) -> int:
+        if Path(args.out).exists() and not args.overwrite:
+            raise ValueError(f"{args.out} already exists; pass --overwrite or choose another --out")
         print(plot_history(args.archive, args.out, args.dpi))
         return 0
 

@@ -125,3 +125,12 @@ def test_history_plots_an_archives_history(tmp_path):
         old.returncode == 2 and len(old.stderr.strip().splitlines()) == 1 and "has no history" in old.stderr
     )
     assert not (tmp_path / "old.png").exists()
+    # an existing figure is the user's: kept without --overwrite, replaced with it
+    (tmp_path / "history.png").write_bytes(b"mine")
+    again = _viz("history", str(path), "-o", str(tmp_path / "history.png"))
+    assert again.returncode == 2 and "already exists" in again.stderr and "--overwrite" in again.stderr
+    assert len(again.stderr.strip().splitlines()) == 1
+    assert (tmp_path / "history.png").read_bytes() == b"mine"
+    replaced = _viz("history", str(path), "-o", str(tmp_path / "history.png"), "--overwrite")
+    assert replaced.returncode == 0, replaced.stderr
+    assert (tmp_path / "history.png").read_bytes().startswith(b"\x89PNG")
