@@ -1,7 +1,7 @@
 """Cost of the chaos indicators: ``advance_map_indicators`` against ``advance_map``, interleaved.
 
 The target: the indicators kernel (MEGNO and the FLI: one ``fdlog`` per point every 8 steps,
-:mod:`warpratchet.kernels.indicators`) run at >= 0.8 of ``advance_map``'s throughput. On a shared
+:mod:`warpratchet.kernels._indicators`) run at >= 0.8 of ``advance_map``'s throughput. On a shared
 machine a single timing of each says little, so this script times the two kernels alternately,
 many short launches each (the order flips every round, so a slow spell hits both), on the state
 of ``throughput.py`` (10^6 points of the strip B, Eq. (B), at K = 3, b1 = 0.1, b2 = 0.01, seed 1,

@@ -26,7 +26,7 @@ Contenders (rows):
   with a reason on a CPU without it.
 * warpratchet: :meth:`warpratchet.Ensemble.run` (kernel ``advance_map``), 1 and all threads,
   after a warm-up launch (first-compile time excluded), on the code path of
-  ``warpratchet.kernels.runtime.CPU_ISA`` (``WARPRATCHET_CPU_ISA=avx2`` measures the AVX2 path on
+  ``warpratchet.kernels.CPU_ISA`` (``WARPRATCHET_CPU_ISA=avx2`` measures the AVX2 path on
   an AVX-512 CPU).
 * warpratchet + indicators: :class:`warpratchet.sumrule.IndicatorEnsemble` (kernel
   ``advance_map_indicators``: the same orbit plus MEGNO and FLI), 1 and all threads.

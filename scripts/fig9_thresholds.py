@@ -27,8 +27,7 @@ import sys
 from _options import options
 
 from warpratchet import Ensemble, paper
-from warpratchet.sweep import fixed_b1_path
-from warpratchet.sweep.run import point_seed
+from warpratchet.sweep import fixed_b1_path, point_seed
 
 RULES = ("positive", "strict")
 

@@ -11,7 +11,7 @@ Prints, for a plain file (``h5py.File(..., libver=LIBVER)``, the sweep file) and
   subsample, with transport counts too) and of an empty sweep file (12 points).
 
 ``warpratchet._storage.CHUNK_BYTES``, ``warpratchet._storage.SPACE_MARGIN``,
-``warpratchet.archive._writer.LAYOUT_BYTES`` and ``warpratchet.sweep.file.LAYOUT_BYTES`` cite
+``warpratchet.archive._writer.LAYOUT_BYTES`` and ``warpratchet.sweep._file.LAYOUT_BYTES`` cite
 these numbers. Usage: ``python scripts/h5_overhead.py``.
 """
 
@@ -29,8 +29,8 @@ from warpratchet._storage import h5_bytes
 from warpratchet.archive import ArchiveSink, layout
 from warpratchet.history import History
 from warpratchet.spec import SweepSpec
-from warpratchet.sweep import file as sweep_file
-from warpratchet.transport.ensemble import TransportEnsemble
+from warpratchet.sweep import _file as sweep_file
+from warpratchet.transport import TransportEnsemble
 
 
 def _plain(path: str) -> h5py.File:

@@ -32,8 +32,8 @@ from _options import options
 from warpratchet import MapParams, Observer
 from warpratchet.observables import lyapunov, lyapunov_threshold, momentum_gain
 from warpratchet.transport import TransportEnsemble
-from warpratchet.transport.diffusion import spread_steps
-from warpratchet.transport.fits import MU_DECADES
+from warpratchet.transport._diffusion import spread_steps
+from warpratchet.transport._fits import MU_DECADES
 
 
 class _Rows(Observer):

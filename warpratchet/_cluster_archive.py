@@ -87,7 +87,7 @@ def _write_transport(
     checkpoint slot's counts and spread rows the merged ones, its carry per point virtual datasets
     over the shards' (:mod:`warpratchet.archive._features`)."""
     from .archive._features import create_transport, read_transport_rows
-    from .transport.histograms import CARRY_FIELDS
+    from .transport import CARRY_FIELDS
 
     create_transport(f, merged.points)
     total = None

@@ -26,7 +26,7 @@ machine, for any number of shards:
   sums the deviations (:func:`~warpratchet.observables.chunk_squares`). The FTLE is
   ``stretch / n`` and ``A_n`` is ``gain / n``, the very operations of
   :func:`~warpratchet.observables.lyapunov` and :func:`~warpratchet.observables.finite_time_acceleration`.
-  The spread of the momentum (:func:`~warpratchet.transport.diffusion.spread_moments`) sums
+  The spread of the momentum (:func:`~warpratchet.transport._diffusion.spread_moments`) sums
   each group's column row after row: a chain of tasks, shard after shard, carries the column
   sums on (:func:`_fold`), once for the means and once for the squared deviations.
   Counts (return times, flights, runs still open) are int64 sums and merge by addition; block
@@ -452,7 +452,7 @@ def _fold_into(acc: np.ndarray, started: np.ndarray, columns: slice, values: np.
 
 
 def _fold(acc: np.ndarray, started: np.ndarray, values: np.ndarray, lo: int, tail: int | None) -> None:
-    """Continue the column sums ``acc`` (:func:`~warpratchet.transport.diffusion.spread_moments`'
+    """Continue the column sums ``acc`` (:func:`~warpratchet.transport._diffusion.spread_moments`'
     ``np.add.reduce(..., axis=0)`` of the points laid out ``(points / G, G)``) with points
     ``lo, lo + 1, ...`` (``values``): NumPy adds row after row there, so the sums of a shard go on
     from those of the shards before it, one elementwise addition per point as on one machine.
@@ -482,9 +482,9 @@ def _spread_link(record: ShardRecord, rows: list, carried: tuple | None, points:
     """A Dask task, one link of a chain over the shards in order: the spread's column sums at each
     ``(k, step, limit)`` of ``rows`` carried on over ``record``'s points: with ``means`` None the
     chaotic points' counts and gains, else their squared deviations from ``means`` (shape
-    ``(rows, G)``), by :func:`~warpratchet.transport.diffusion.spread_moments`' own elementwise code."""
-    from .transport.diffusion import _chaotic_gains
-    from .transport.fits import GROUPS
+    ``(rows, G)``), by :func:`~warpratchet.transport._diffusion.spread_moments`' own elementwise code."""
+    from .transport._diffusion import _chaotic_gains
+    from .transport._fits import GROUPS
 
     if carried is None:
         carried = (np.zeros((len(rows), GROUPS)), np.zeros((len(rows), GROUPS), bool),
@@ -666,10 +666,10 @@ class ShardedRun:
         return result
 
     def _merge_transport(self, cluster: _Cluster) -> dict:
-        from .transport.diffusion import spread_steps
-        from .transport.fits import GROUPS, diffusion_fit, pooled_variance
-        from .transport.histograms import Histograms
-        from .transport.report import transport_report
+        from .transport import Histograms
+        from .transport._diffusion import spread_steps
+        from .transport._fits import GROUPS, diffusion_fit, pooled_variance
+        from .transport._report import transport_report
 
         counts = sum(r.counts for r in self._records)
         still_open = sum(r.open_counts for r in self._records)
@@ -736,7 +736,7 @@ def check_merge(points: int, transport: bool = False, rows: int = 64) -> None:
     of ``rows`` rows (:data:`MERGE_BYTES_PER_BLOCK`), and with ``transport`` the spread's column
     sums; nothing per point."""
     from .limits import check_memory
-    from .transport.fits import GROUPS
+    from .transport._fits import GROUPS
 
     blocks = len(_chunks(points))
     needed = rows * (blocks * MERGE_BYTES_PER_BLOCK + (3 * GROUPS * 8 if transport else 0))
@@ -889,7 +889,7 @@ def run_sharded(
     RuntimeError
         A shard failed for good (after Dask's retries of a lost worker): names the shard and why.
     """
-    from .sweep.run import _connect
+    from .sweep._run import _connect
 
     if not isinstance(spec, RunSpec):
         raise ParameterError(f"spec = {spec!r} is not a RunSpec")

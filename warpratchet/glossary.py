@@ -16,7 +16,7 @@ Pure: no Warp, no I/O.
 
 from __future__ import annotations
 
-from .transport.histograms import HISTOGRAMS
+from .transport._histograms import HISTOGRAMS
 
 __all__ = ["GLOSSARY", "describe"]
 

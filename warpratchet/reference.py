@@ -4,7 +4,7 @@
 and with the same float64 roundings, so that the two agree bit for bit. It is vectorised over
 points and loops over steps in Python: the honest NumPy baseline of ``benchmarks/``. Two
 logarithms appear: the ``log`` of a renormalisation is the C library's, as in the kernels, and the
-chaos indicators' is :func:`fdlog`, the project's own (:mod:`warpratchet.kernels.logarithm`).
+chaos indicators' is :func:`fdlog`, the project's own (:mod:`warpratchet.kernels._logarithm`).
 """
 
 from __future__ import annotations
@@ -13,9 +13,8 @@ import math
 
 import numpy as np
 
-from .kernels import RENORM_CHECK_EVERY, RENORM_THRESHOLD
-from .kernels.indicators import INDICATOR_FIELDS
-from .kernels.logarithm import LG1, LG2, LG3, LG4, LG5, LG6, LG7, LN2_HI, LN2_LO, REDUCE_ABOVE
+from .kernels import INDICATOR_FIELDS, RENORM_CHECK_EVERY, RENORM_THRESHOLD
+from .kernels._logarithm import LG1, LG2, LG3, LG4, LG5, LG6, LG7, LN2_HI, LN2_LO, REDUCE_ABOVE
 from .params import MapParams
 
 __all__ = ["advance", "advance_indicators", "advance_renormalising_every_step", "fdlog", "INDICATOR_FIELDS"]
@@ -93,7 +92,7 @@ def advance_renormalising_every_step(
 
 
 def fdlog(x: np.ndarray) -> np.ndarray:
-    """Natural logarithm, bitwise that of the kernels' ``fdlog`` (:mod:`warpratchet.kernels.logarithm`).
+    """Natural logarithm, bitwise that of the kernels' ``fdlog`` (:mod:`warpratchet.kernels._logarithm`).
 
     fdlibm's algorithm, operation by operation as the kernels evaluate it; ``x`` any shape.
     """
@@ -124,7 +123,7 @@ def advance_indicators(
     step0: int = 0,
 ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """:func:`advance` plus the accumulators of ``advance_map_indicators`` (keys ``fli,
-    megno_lsum, megno_ysum``), its bitwise twin (see :mod:`warpratchet.kernels.indicators`).
+    megno_lsum, megno_ysum``), its bitwise twin (see :mod:`warpratchet.kernels._indicators`).
 
     At every global step ``8 j``, after the renormalisation check: ``L = log_stretch +
     0.5 fdlog(dx^2 + dp^2)``, ``fli = max(fli, L)``, ``megno_ysum += 2 L - 2 megno_lsum / j``,

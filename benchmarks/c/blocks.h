@@ -14,7 +14,7 @@
  *
  * Each primitive is one or two intrinsics of its instruction set and rounds nothing beyond the
  * operation it names, so both twins do the same operations, in the same order and with the same
- * roundings, as warpratchet.kernels.step.
+ * roundings, as warpratchet.kernels._step.
  */
 #ifndef RATCHET_BLOCKS_H
 #define RATCHET_BLOCKS_H

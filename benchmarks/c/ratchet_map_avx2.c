@@ -2,7 +2,7 @@
  * Hand-vectorised AVX2 twin of warpratchet.kernels.advance_map, for benchmarks/throughput.py:
  * the ceiling of a CPU without AVX-512 (4-wide vectors, blends instead of mask registers) for the
  * project's exact arithmetic. The AVX-512 twin is ratchet_map_avx512.c; both do the same
- * operations, in the same order and with the same roundings, as warpratchet.kernels.step:
+ * operations, in the same order and with the same roundings, as warpratchet.kernels._step:
  *
  *   K f and K f' of Eq. (fx) by force_kick of force.h (pieces x <= b1, x < 1 - b2, else);
  *   t = q + K f;  floor(t) by one vroundpd;  q = t - floor(t), folded to 0 (one more whole unit)

@@ -2,7 +2,7 @@
  * Hand-vectorised AVX-512 twin of warpratchet.kernels.advance_map, for benchmarks/throughput.py:
  * the CPU's ceiling for the project's exact arithmetic, against which warpratchet is measured.
  *
- * Same operations, in the same order and with the same roundings, as warpratchet.kernels.step
+ * Same operations, in the same order and with the same roundings, as warpratchet.kernels._step
  * (and as the plain twin ratchet_map.c), so that the end state is bitwise warpratchet's:
  *
  *   K f and K f' of Eq. (fx) by force_kick of force.h (pieces x <= b1, x < 1 - b2, else);

@@ -14,10 +14,11 @@ import warp as wp
 
 from warpratchet import kernels, reference
 from warpratchet.ensemble import Ensemble
-from warpratchet.kernels.transport import BINS, CARRY_FIELDS, HISTOGRAMS, advance_map_transport
+from warpratchet.kernels._transport import BINS, CARRY_FIELDS, HISTOGRAMS, advance_map_transport
 from warpratchet.params import MapParams
-from warpratchet.transport import Histograms, TransportEnsemble, bin_of, edges, open_runs, twin
-from warpratchet.transport import histograms as pure
+from warpratchet.transport import Histograms, TransportEnsemble, bin_of, edges, open_runs
+from warpratchet.transport import _histograms as pure
+from warpratchet.transport import _twin as twin
 
 kernels.init_warp()
 FIELDS = ("x", "q", "winding", "dx", "dp", "log_stretch")
@@ -216,7 +217,7 @@ def test_two_threads_on_one_scratch_are_refused_not_miscounted():
     """The CPU hooks share a launch's scratch on the assumption that Warp runs its threads one
     after the other; two launches given one scratch and run at once (Warp releases the GIL) break
     it, and the guard must turn that into an error rather than counts that are silently wrong."""
-    from warpratchet.kernels.transport_cpu import SCRATCH_BYTES
+    from warpratchet.kernels._transport_cpu import SCRATCH_BYTES
 
     p = MapParams(3.0, 0.1, 0.01)
     state, x = _start(p, n=20000)
@@ -251,7 +252,7 @@ def test_two_threads_on_one_scratch_are_refused_not_miscounted():
 def test_the_cli_refuses_a_flagged_launch_in_one_line_with_status_1(monkeypatch, capsys):
     """A launch the guard flags is not the user's input: one error line, status 1, no counts."""
     from warpratchet.cli import main
-    from warpratchet.kernels.transport_cpu import CONFLICT_WORD, SCRATCH_BYTES
+    from warpratchet.kernels._transport_cpu import CONFLICT_WORD, SCRATCH_BYTES
 
     launch = advance_map_transport.launch
 

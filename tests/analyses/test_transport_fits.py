@@ -1,4 +1,4 @@
-"""The exponents of issue 16 on synthetic data with known exponents (warpratchet.transport.fits).
+"""The exponents of issue 16 on synthetic data with known exponents (warpratchet.transport._fits).
 
 Tolerances are the fits' own standard errors (3 of them); the calibration tests check those
 errors against the scatter of independent replicas.
@@ -13,8 +13,8 @@ import pytest
 from warpratchet import History, MapParams
 from warpratchet.observables import default_lyapunov_threshold, lyapunov
 from warpratchet.transport import TransportEnsemble
-from warpratchet.transport.diffusion import spread_moments, spread_steps
-from warpratchet.transport.fits import (
+from warpratchet.transport._diffusion import spread_moments, spread_steps
+from warpratchet.transport._fits import (
     bin_masses,
     default_tail_bins,
     diffusion_fit,
@@ -230,7 +230,7 @@ def test_a_transport_runs_spread_rows_use_the_runs_own_threads(monkeypatch):
     """On 2 threads a transport run makes one pool, its launches': the spread rows and the history
     rows run on it. The spread rows are those of a spread with a pool of its own, bit for bit."""
     import warpratchet.ensemble
-    import warpratchet.transport.diffusion
+    import warpratchet.transport._diffusion
     from warpratchet import Ensemble
 
     made = []
@@ -239,7 +239,7 @@ def test_a_transport_runs_spread_rows_use_the_runs_own_threads(monkeypatch):
         made.append(ThreadPoolExecutor(*args, **kwargs))
         return made[-1]
 
-    for module in (warpratchet.ensemble, warpratchet.transport.diffusion):
+    for module in (warpratchet.ensemble, warpratchet.transport._diffusion):
         monkeypatch.setattr(module, "ThreadPoolExecutor", pool)
     rows = []
     for shared in (True, False):
@@ -258,7 +258,7 @@ def test_bytes_per_point_count_the_carry_and_a_spread_rows_arrays():
     full-size arrays of a spread row (measured here with tracemalloc, which sees NumPy's)."""
     import tracemalloc
 
-    from warpratchet.transport.diffusion import SPREAD_BYTES_PER_POINT
+    from warpratchet.transport._diffusion import SPREAD_BYTES_PER_POINT
 
     ens = TransportEnsemble.sample(MapParams(3.0, 0.1, 0.01), 10, threads=1)
     carry = sum(a.numpy().itemsize for a in ens._extra_arrays())

@@ -25,7 +25,7 @@ from warpratchet.archive import SERIES_FIELDS, SNAPSHOT_FIELDS, ArchiveSink, run
 from warpratchet.cli import main
 from warpratchet.history import history_steps
 from warpratchet.sweep import read_sweep
-from warpratchet.sweep.records import ADDED_COLUMNS
+from warpratchet.sweep._records import ADDED_COLUMNS
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 ARCHIVE, SWEEP = DATA / "archive_v1.h5", DATA / "sweep_v1.h5"

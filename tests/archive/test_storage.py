@@ -21,7 +21,7 @@ from support import MAP_FLAGS, cli
 from warpratchet import Ensemble, MapParams, open_archive, summarize
 from warpratchet.archive import ArchiveSink, _format, _recovery, _rows
 from warpratchet.cli import main
-from warpratchet.sweep import file as sweep_file
+from warpratchet.sweep import _file as sweep_file
 from warpratchet.sweep import read_sweep
 
 POINTS, SEED = 20_000, 3  # 56 B per point: a checkpoint slot is 1.1 MB

@@ -181,7 +181,7 @@ def test_a_non_finite_state_is_never_summarised_as_a_number():
 
 
 def test_the_census_refuses_a_non_finite_indicator_instead_of_calling_it_regular():
-    from warpratchet.sumrule.islands import _check_finite
+    from warpratchet.sumrule._islands import _check_finite
 
     ens = Ensemble.sample(P, 10, threads=1).run(16)
     state = ens.state()
@@ -305,7 +305,7 @@ def test_api_mistakes_are_one_line_value_errors(tmp_path):
 
 def test_a_recording_into_a_folder_that_refuses_it_is_one_line_and_status_1(tmp_path, capsys, monkeypatch):
     """An injected EROFS here; a real read-only mount in the next test (where it can be made)."""
-    from warpratchet.recording import stream
+    from warpratchet.recording import _stream as stream
 
     real_open = os.open
 

@@ -238,7 +238,7 @@ def test_a_sweep_over_K_of_another_force_is_stored_resumed_and_verified(tmp_path
     """sweep.k_path with a table: rows with NaN b1, b2 and domain "n/a"; a sweep file stores the
     force, resumes (the same rows, nothing recomputed), verifies, and refuses another force."""
     from warpratchet import sweep
-    from warpratchet.sweep.verify import verify_sweep
+    from warpratchet.sweep import verify_sweep
 
     table = Force.from_knots(["0", "0.25", "0.75", "0.95"], ["-0.2", "0.3", "0", "-0.66"])
     points = sweep.k_path([2.8, 3.0], table=table)
@@ -290,11 +290,11 @@ def test_an_archive_stores_the_force_and_resumes_it_bit_for_bit(tmp_path, capsys
 @pytest.mark.parametrize("body", ["cpu", "portable"])
 def test_transport_counts_of_another_force_equal_the_numpy_twins(body):
     """Return times to the force's strip and flights (``advance_map_transport``) against
-    ``transport.twin``, 1003 points x 1500 steps from global step 5, count for count."""
+    ``transport._twin``, 1003 points x 1500 steps from global step 5, count for count."""
     import warp as wp
 
-    from warpratchet.kernels.transport import BINS, CARRY_FIELDS, advance_map_transport
-    from warpratchet.transport import twin
+    from warpratchet.kernels._transport import BINS, CARRY_FIELDS, advance_map_transport
+    from warpratchet.transport import _twin as twin
 
     p = MapParams(3.0, table=Force.from_knots(["0", "0.25", "0.75", "0.95"], ["-0.2", "0.3", "0", "-0.66"]))
     x, q = _start(p.table)

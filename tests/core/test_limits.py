@@ -30,9 +30,8 @@ from warpratchet.limits import (
 )
 from warpratchet.observables import SUMMARY_BYTES_PER_POINT, SUMMARY_CHUNK, summarize, summarize_with_variance
 from warpratchet.params import MapParams
-from warpratchet.sumrule import census
-from warpratchet.sumrule.indicators import IndicatorEnsemble
-from warpratchet.sumrule.islands import CLASSIFY_HOST_BYTES_PER_POINT
+from warpratchet.sumrule import IndicatorEnsemble, census
+from warpratchet.sumrule._islands import CLASSIFY_HOST_BYTES_PER_POINT
 from warpratchet.sweep import SWEEP_BYTES_PER_POINT, SweepSpec, maximal_path, run_sweep
 
 

@@ -152,7 +152,7 @@ def test_the_chaos_indicator_is_named_indicator_and_classifier_still_works():
     with pytest.warns(DeprecationWarning, match="spec.CLASSIFIERS is spelled warpratchet.spec.INDICATORS"):
         assert spec.CLASSIFIERS == INDICATORS
     with pytest.warns(DeprecationWarning, match="INDICATORS"):
-        assert sumrule.indicators.CLASSIFIERS == INDICATORS
+        assert sumrule.CLASSIFIERS == INDICATORS
     with pytest.warns(DeprecationWarning, match=r"default_threshold\(classifier=\.\.\.\)"):
         assert sumrule.default_threshold(classifier="megno", step=10) == sumrule.MEGNO_THRESHOLD
     assert RunSpec.from_attrs({"K": 3, "b1": 0.1, "b2": 0.01, "classifier": "fli"}).indicator == "fli"

@@ -1,6 +1,6 @@
 """Both vector code paths of the CPU body: AVX2 and AVX-512, the same bits.
 
-``WARPRATCHET_CPU_ISA`` chooses the path at import (``warpratchet.kernels.runtime``), so each
+``WARPRATCHET_CPU_ISA`` chooses the path at import (``warpratchet.kernels._runtime``), so each
 path runs in a subprocess of its own. The AVX2 path runs on any x86-64 CPU with AVX2, an AVX-512
 one included (AVX-512 switched off), and must equal the NumPy twin bit for bit. The AVX-512 path
 runs and is checked the same way where the CPU has AVX-512; elsewhere it is compiled (for Zen 4:
@@ -15,16 +15,17 @@ import sys
 import pytest
 import support
 
-from warpratchet.kernels import runtime
+from warpratchet.kernels import _runtime as runtime
 
 _CHECK = r"""
 import sys
 import numpy as np
 from warpratchet import reference
 from warpratchet.ensemble import Ensemble
-from warpratchet.kernels import INTERLEAVE, advance_map, advance_map_indicators, init_warp, runtime
+from warpratchet.kernels import INTERLEAVE, advance_map, advance_map_indicators, init_warp
+from warpratchet.kernels import _runtime as runtime
 from warpratchet.params import MapParams
-from warpratchet.kernels.transport import advance_map_transport
+from warpratchet.kernels._transport import advance_map_transport
 
 init_warp()
 print(runtime.CPU_ISA, INTERLEAVE, runtime.CPU_COMPILER_FLAGS)

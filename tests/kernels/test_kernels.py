@@ -182,22 +182,22 @@ class _FactArrays:
 
 @wp.struct
 class _FactSums:
-    visits: kernels.step.LaneVector
-    gained: kernels.step.LaneVector
+    visits: kernels._step.LaneVector
+    gained: kernels._step.LaneVector
 
 
 @wp.func
 def _load_sums(arrays: _FactArrays, first: int, spacing: int, n: int):
     acc = _FactSums()
-    acc.visits = kernels.step.load_lane_vector(arrays.visits, first, spacing, n)
-    acc.gained = kernels.step.load_lane_vector(arrays.gained, first, spacing, n)
+    acc.visits = kernels._step.load_lane_vector(arrays.visits, first, spacing, n)
+    acc.gained = kernels._step.load_lane_vector(arrays.gained, first, spacing, n)
     return acc
 
 
 @wp.func
 def _store_sums(arrays: _FactArrays, acc: _FactSums, first: int, spacing: int, n: int):
-    kernels.step.store_lane_vector(arrays.visits, acc.visits, first, spacing, n)
-    kernels.step.store_lane_vector(arrays.gained, acc.gained, first, spacing, n)
+    kernels._step.store_lane_vector(arrays.visits, acc.visits, first, spacing, n)
+    kernels._step.store_lane_vector(arrays.gained, acc.gained, first, spacing, n)
 
 
 @wp.func

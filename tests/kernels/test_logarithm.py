@@ -13,9 +13,15 @@ import pytest
 import warp as wp
 
 from warpratchet import kernels, reference
-from warpratchet.kernels.logarithm import FDLOG_VECTOR, fdlog
-from warpratchet.kernels.runtime import CPU_MODULE_OPTIONS, MODULE_OPTIONS
-from warpratchet.kernels.step import INTERLEAVE, VECTOR_TYPES, LaneVector, load_lane_vector, store_lane_vector
+from warpratchet.kernels._logarithm import FDLOG_VECTOR, fdlog
+from warpratchet.kernels._runtime import CPU_MODULE_OPTIONS, MODULE_OPTIONS
+from warpratchet.kernels._step import (
+    INTERLEAVE,
+    VECTOR_TYPES,
+    LaneVector,
+    load_lane_vector,
+    store_lane_vector,
+)
 
 kernels.init_warp()
 BODIES = [  # (step body, device)
@@ -60,7 +66,7 @@ def _ulps(got: np.ndarray, exact: np.ndarray) -> np.ndarray:
     np.finfo(np.longdouble).nmant < 63, reason="numpy.longdouble is not 80-bit here: no exact reference"
 )
 def test_fdlog_is_within_one_ulp_of_the_exact_logarithm():
-    """fdlibm's bound (< 1 ulp); measured 0.83 ulp at most, glibc's log 0.52 (kernels/logarithm.py)."""
+    """fdlibm's bound (< 1 ulp); measured 0.83 ulp at most, glibc's log 0.52 (kernels/_logarithm.py)."""
     x = _sample()
     exact = np.log(x.astype(np.longdouble))
     errors = _ulps(reference.fdlog(x), exact)

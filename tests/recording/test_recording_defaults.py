@@ -21,7 +21,7 @@ from warpratchet.recording import (
     log_spaced,
     plan_frames,
 )
-from warpratchet.recording.plan import BYTES_FIXED, BYTES_PER_FRAME, BYTES_PER_POINT
+from warpratchet.recording._plan import BYTES_FIXED, BYTES_PER_FRAME, BYTES_PER_POINT
 
 PARAMS = MapParams(3.0, 0.1, 0.01)
 

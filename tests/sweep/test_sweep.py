@@ -141,7 +141,7 @@ def test_dask_local_cluster_gives_the_local_rows_bit_for_bit(tmp_path, reference
     local_file, dask_file = tmp_path / "local.h5", tmp_path / "dask.h5"
     local = run_sweep(POINTS, SPEC, out=local_file, progress=False)
     # No ensemble may run in this process from here on: the Dask rows must come from the workers.
-    monkeypatch.setattr(sweep_module.run, "Ensemble", None)
+    monkeypatch.setattr(sweep_module._run, "Ensemble", None)
     with (
         distributed.LocalCluster(
             n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None

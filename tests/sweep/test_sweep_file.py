@@ -18,7 +18,7 @@ from warpratchet import sweep as sweep_module
 from warpratchet.cli import main
 from warpratchet.errors import FileFormatError
 from warpratchet.sweep import ROW_FIELDS, SweepSpec, maximal_path, read_sweep, run_sweep
-from warpratchet.sweep.file import SweepFile
+from warpratchet.sweep._file import SweepFile
 
 SPEC = SweepSpec(points=60, steps=200, seed=2)
 POINTS = maximal_path([0.01, 0.05, 0.1])
@@ -114,7 +114,7 @@ def test_force_replaces_atomically(finished, tmp_path, monkeypatch):
     def fail(*args, **kwargs):
         raise OSError(28, "No space left on device")
 
-    monkeypatch.setattr(sweep_module.file, "publish", fail)
+    monkeypatch.setattr(sweep_module._file, "publish", fail)
     with pytest.raises(OSError, match="disk full"):
         run_sweep(POINTS, other, out=path, progress=False, force=True)
     assert path.read_bytes() == before  # the old file stays until its replacement exists

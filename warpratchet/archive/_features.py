@@ -36,9 +36,8 @@ import numpy as np
 from ..glossary import describe
 from ..history import BLOCK_FIELDS, HISTORY_FIELDS, History
 from ..spec import attr_value
-from ..transport.fits import GROUPS
-from ..transport.histograms import BINS, CARRY_FIELDS, HISTOGRAMS
-from ..transport.report import counts_transport
+from ..transport import BINS, CARRY_FIELDS, HISTOGRAMS, counts_transport
+from ..transport._fits import GROUPS
 from ._format import (
     HISTORY_COUNTERS,
     ROW_CHUNK,
@@ -300,7 +299,7 @@ class TransportWriter:
 
 
 def write_transport_slot(f: h5py.File, slot: str, transport: Any) -> None:
-    """Write a :class:`~warpratchet.transport.ensemble.TransportState` into ``/transport/<slot>``."""
+    """Write a :class:`~warpratchet.transport._ensemble.TransportState` into ``/transport/<slot>``."""
     s = f["transport"][slot]
     for name in CARRY_FIELDS:
         s[name].write_direct(np.ascontiguousarray(transport.carry[name], dtype=np.int64))
@@ -314,7 +313,7 @@ def write_transport_slot(f: h5py.File, slot: str, transport: Any) -> None:
 
 def read_transport_slot(f: h5py.File, path: str, slot: str, points: int) -> Any:
     """The transport state in ``/transport/<slot>`` (ArchiveError if it is unreadable)."""
-    from ..transport.ensemble import TransportState
+    from ..transport._ensemble import TransportState
 
     with reading(path, f"/transport/{slot}"):
         s = f["transport"][slot]

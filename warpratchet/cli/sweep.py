@@ -1,6 +1,6 @@
 """``warpratchet sweep``: one ensemble per parameter point; rows to an HDF5 sweep file.
 
-Where the points are: ``--path`` (the paper's paths, :mod:`warpratchet.sweep.paths`) or
+Where the points are: ``--path`` (the paper's paths, :mod:`warpratchet.sweep`) or
 ``--grid``, with ranges ``START:STOP:COUNT`` that include both ends. What runs at each point:
 the :class:`~warpratchet.spec.SweepSpec` flags (``--points --steps --seed --init
 --threshold --threshold-rule``), plus ``--threads`` and ``--scheduler`` (where it runs, never what).

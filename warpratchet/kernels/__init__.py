@@ -4,36 +4,36 @@ The map (Eq. cpem) and its tangent ``DM`` are advanced *inside* one kernel for `
 iterations, so that a launch does real work: on the CPU a Warp launch runs on one thread, and
 the ensemble layer shards points over one Python thread per core.
 
-* :mod:`.step`: the step body, written once per backend: the arithmetic, the lanes, the CPU body
+* :mod:`._step`: the step body, written once per backend: the arithmetic, the lanes, the CPU body
   (whole lane vectors, C++ with clang vector extensions) and the portable body (plain Warp, what
   CUDA runs);
-* :mod:`.advance`: the step loop, written once, and kernel variants built on it (hooks after each
+* :mod:`._advance`: the step loop, written once, and kernel variants built on it (hooks after each
   step and after each renormalisation check; a plain run pays nothing for them);
-* :mod:`.map`, :mod:`.indicators`, :mod:`.transport`: ``advance_map``, ``advance_map_indicators``
+* :mod:`._map`, :mod:`._indicators`, :mod:`._transport`: ``advance_map``, ``advance_map_indicators``
   (MEGNO, FLI; its accumulators :data:`INDICATOR_FIELDS`) and ``advance_map_transport`` (return
   times and flights);
-* :mod:`.logarithm`: ``fdlog``, the indicators' logarithm, the same bits on every body;
-* :mod:`.runtime`: Warp start-up and the compiler options.
+* :mod:`._logarithm`: ``fdlog``, the indicators' logarithm, the same bits on every body;
+* :mod:`._runtime`: Warp start-up and the compiler options.
 
-The CPU body is built for one vector instruction set (:data:`.runtime.CPU_ISA`: AVX-512 where the
+The CPU body is built for one vector instruction set (:data:`._runtime.CPU_ISA`: AVX-512 where the
 CPU has it, else AVX2; ``WARPRATCHET_CPU_ISA`` chooses): :data:`INTERLEAVE` = 32 lanes (four 8-wide
 vectors per field) on the AVX-512 path, 16 (four 4-wide vectors) on the AVX2 path, the counts
 that keep a step's lane vectors in the register file. Both paths give the same bits, and no FMA
 contraction anywhere (``-ffp-contract=off``, ``fuse_fp=False``): NumPy rounds ``a*b + c`` twice.
 A kernel without per-step work runs the steps between two renormalisation checks in one call of
 the body, its lanes in registers throughout. ``advance_map_indicators`` takes its logarithm with
-:func:`.logarithm.fdlog` (the same bits on every body and in NumPy) on whole lane vectors; the
+:func:`._logarithm.fdlog` (the same bits on every body and in NumPy) on whole lane vectors; the
 renormalisation's ``log`` (once per ~660 steps for a chaotic point) is the C library's, lane by
 lane, for the lanes that need it. The measurements behind these choices, and what each kernel
 reaches against the hand-vectorised C of its instruction set, are in ``benchmarks/README.md``.
 """
 
-from .advance import MAX_LAUNCH_STEPS, AdvanceKernel, Variant, advance_kernel, launch_dim
-from .indicators import INDICATOR_FIELDS, advance_map_indicators
-from .map import advance_map
-from .runtime import CPU_ISA, init_warp
-from .step import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD, Lanes
-from .transport import advance_map_transport
+from ._advance import MAX_LAUNCH_STEPS, AdvanceKernel, Variant, advance_kernel, launch_dim
+from ._indicators import INDICATOR_FIELDS, advance_map_indicators
+from ._map import advance_map
+from ._runtime import CPU_ISA, init_warp
+from ._step import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD, Lanes
+from ._transport import advance_map_transport
 
 __all__ = [
     "advance_map",

@@ -6,9 +6,9 @@ composes to ``z -> A z + b`` with ``A = DM^m``, and a point of exact period ``m`
 ``(A - I) z = -b`` inside the itinerary's cell. The package
 
 * enumerates the itineraries with a non-empty cell by an exact tree search
-  (:mod:`~warpratchet.orbits.search`, :mod:`~warpratchet.orbits.cells`), one least rotation
+  (:mod:`~warpratchet.orbits._search`, :mod:`~warpratchet.orbits._cells`), one least rotation
   per cycle;
-* decides each one in exact integer arithmetic (:mod:`~warpratchet.orbits.exact`) for the
+* decides each one in exact integer arithmetic (:mod:`~warpratchet.orbits._exact`) for the
   paper's map at the float64 ``K, b1, b2`` (Eq. mmc solved exactly, so the force is exactly
   continuous and orbits through its kinks are not lost or doubled): solved and iterated
   exactly, half-open cells included, each orbit is found exactly once;
@@ -21,12 +21,12 @@ composes to ``z -> A z + b`` with ``A = DM^m``, and a point of exact period ``m`
 Public API: :func:`enumerate_orbits` (orbits, families and the search's cost),
 :func:`periodic_orbits`, :func:`orbit_families`, :func:`orbits_report` (the CLI's JSON object)
 and :func:`format_orbits` (its text form); and a brute-force cross-check of the search
-(:mod:`~warpratchet.orbits.words`): :func:`all_words` of the force's alphabet, each word's affine
+(:mod:`~warpratchet.orbits._words`): :func:`all_words` of the force's alphabet, each word's affine
 map (:func:`compose`, with :func:`word_kicks`) and its float64 fixed point
 (:func:`fixed_points`), the symbols of the codes (:func:`symbol_table`). Pure: no Warp, no I/O.
 """
 
-from .enumerate import (
+from ._enumerate import (
     KINDS,
     SLOPE_ULPS,
     Enumeration,
@@ -36,8 +36,8 @@ from .enumerate import (
     orbit_families,
     periodic_orbits,
 )
-from .report import format_orbits, orbits_report
-from .words import all_words, compose, fixed_points, symbol_table, word_kicks
+from ._report import format_orbits, orbits_report
+from ._words import all_words, compose, fixed_points, symbol_table, word_kicks
 
 __all__ = [
     "KINDS",

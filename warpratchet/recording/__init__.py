@@ -2,16 +2,16 @@
 
 One idea per module:
 
-* :mod:`.scene`: what a recording shows (entity paths, colours, classes, the default blueprint);
-* :mod:`.stream`: :class:`PhaseSpaceRecording`, one recording written to a file or a viewer;
-* :mod:`.plan`: which steps get a frame and how many points it draws (size and time budgets);
-* :mod:`.sink`: :class:`RecordingSink`, the observer that records a run as it goes.
+* :mod:`._scene`: what a recording shows (entity paths, colours, classes, the default blueprint);
+* :mod:`._stream`: :class:`PhaseSpaceRecording`, one recording written to a file or a viewer;
+* :mod:`._plan`: which steps get a frame and how many points it draws (size and time budgets);
+* :mod:`._sink`: :class:`RecordingSink`, the observer that records a run as it goes.
 
 rerun-sdk is an optional dependency (``pip install 'warpratchet[rerun]'``), imported only when a
 recording is opened. Replays of an archive's snapshots live in ``viz/record.py``.
 """
 
-from .plan import (
+from ._plan import (
     DEFAULT_MAX_BYTES,
     DEFAULT_MAX_FRAMES,
     DEFAULT_MAX_POINTS,
@@ -22,7 +22,7 @@ from .plan import (
     points_within_budget,
     probe_throughput,
 )
-from .scene import (
+from ._scene import (
     CLASSES,
     CLOUD_PATH,
     COLOR_BY,
@@ -36,8 +36,8 @@ from .scene import (
     require_rerun,
     torus_positions,
 )
-from .sink import RecordingSink
-from .stream import PhaseSpaceRecording, ViewerUnavailable, check_new_file, display_available
+from ._sink import RecordingSink
+from ._stream import PhaseSpaceRecording, ViewerUnavailable, check_new_file, display_available
 
 __all__ = [
     "RERUN_MISSING",

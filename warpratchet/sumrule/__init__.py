@@ -5,14 +5,15 @@ region ``C``, an island class ``nu = w/m`` (Eq. AIn) or "unidentified", and comp
 to the ratchet acceleration ``A``: Eq. (sum) ``A_sumrule = -sum_j S_j nu_j / S_C``, the mean
 ``A_n`` over ``C`` and ``K <f>_C``. One idea per module:
 
-* :mod:`.indicators`: the chaos indicators of one Warp pass (FTLE, MEGNO, FLI), their masks
+* :mod:`._indicators`: the chaos indicators of one Warp pass (FTLE, MEGNO, FLI), their masks
   and default thresholds;
-* :mod:`.islands`: the per-point classification (``nu = w/m`` from the momentum record);
-* :mod:`.areas`: the census (areas with errors) and the three routes to ``A``.
+* :mod:`._islands`: the per-point classification (``nu = w/m`` from the momentum record);
+* :mod:`._areas`: the census (areas with errors) and the three routes to ``A``.
 """
 
-from .areas import Census, IslandClass, census, lattice
-from .indicators import (
+from ..errors import renamed_globals
+from ._areas import Census, IslandClass, census, lattice
+from ._indicators import (
     INDICATORS,
     MEGNO_THRESHOLD,
     IndicatorEnsemble,
@@ -20,7 +21,7 @@ from .indicators import (
     default_threshold,
     fli_threshold,
 )
-from .islands import (
+from ._islands import (
     CHECKPOINTS,
     DEFAULT_M_MAX,
     PointClasses,
@@ -49,3 +50,6 @@ __all__ = [
     "Census",
     "census",
 ]
+
+#: ``CLASSIFIERS``, the former name of :data:`INDICATORS`, still works (DeprecationWarning).
+__getattr__ = renamed_globals(__name__, {"CLASSIFIERS": "INDICATORS"}, globals())

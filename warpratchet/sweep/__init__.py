@@ -9,12 +9,12 @@ Ab), and the numerical A, FTLE statistics and chaotic fraction of
 
 The package has three rooms:
 
-* :mod:`~warpratchet.sweep.paths`: the paper's paths and grids (Figs. 5-9), pure;
-* :mod:`~warpratchet.sweep.records`: format, versions and the columns of a row;
-* :mod:`~warpratchet.sweep.file`: writing the HDF5 sweep file (layout, resume, ``--force``);
-* :mod:`~warpratchet.sweep.reading`: :func:`read_sweep`, :func:`read_definition`;
-* :mod:`~warpratchet.sweep.verify`: :func:`verify_sweep` (``warpratchet verify``);
-* :mod:`~warpratchet.sweep.run`: one point (:func:`run_point`), seeds (:func:`point_seed`),
+* :mod:`~warpratchet.sweep._paths`: the paper's paths and grids (Figs. 5-9), pure;
+* :mod:`~warpratchet.sweep._records`: format, versions and the columns of a row;
+* :mod:`~warpratchet.sweep._file`: writing the HDF5 sweep file (layout, resume, ``--force``);
+* :mod:`~warpratchet.sweep._reading`: :func:`read_sweep`, :func:`read_definition`;
+* :mod:`~warpratchet.sweep._verify`: :func:`verify_sweep` (``warpratchet verify``);
+* :mod:`~warpratchet.sweep._run`: one point (:func:`run_point`), seeds (:func:`point_seed`),
   and the local and Dask executors (:func:`run_sweep`).
 
 The names that need Warp or HDF5 (the runner, the reader, the verifier) are imported on first
@@ -24,7 +24,7 @@ use, so that the paths and the row format load neither.
 from typing import Any
 
 from ..spec import SweepSpec
-from .paths import (
+from ._paths import (
     DOMAINS,
     SWEEP_BYTES_PER_POINT,
     check_sweep_size,
@@ -34,7 +34,7 @@ from .paths import (
     line_path,
     maximal_path,
 )
-from .records import (
+from ._records import (
     FORMAT,
     FORMAT_VERSION,
     READABLE_VERSIONS,
@@ -74,11 +74,11 @@ def __getattr__(name: str) -> Any:
     # Written as import statements, not module names in strings, so that the import test of
     # docs/architecture.md sees these arrows too.
     if name in ("point_seed", "run_point", "run_sweep"):
-        from . import run as home
+        from . import _run as home
     elif name in ("read_sweep", "read_definition"):
-        from . import reading as home
+        from . import _reading as home
     elif name == "verify_sweep":
-        from . import verify as home
+        from . import _verify as home
     else:
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     value = getattr(home, name)

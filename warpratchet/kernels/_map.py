@@ -2,8 +2,8 @@
 
 import warp as wp
 
-from .advance import Variant, advance_kernel
-from .step import Lanes
+from ._advance import Variant, advance_kernel
+from ._step import Lanes
 
 __all__ = ["advance_map", "PLAIN"]
 

@@ -16,7 +16,7 @@ import warp as wp
 
 from .. import kernels
 from ..ensemble import Ensemble
-from ..errors import check_choice, renamed_globals, renamed_keyword
+from ..errors import check_choice, renamed_keyword
 from ..observables import default_lyapunov_threshold, lyapunov
 from ..params import MapParams
 from ..spec import INDICATORS  # the one definition: RunSpec's ``indicator`` choices
@@ -36,10 +36,7 @@ __all__ = [
 #: oscillations of short runs.
 MEGNO_THRESHOLD = 4.0
 
-_INDICATOR_FIELDS = kernels.indicators.INDICATOR_FIELDS
-
-#: ``CLASSIFIERS``, the former name of :data:`INDICATORS`, still works (DeprecationWarning).
-__getattr__ = renamed_globals(__name__, {"CLASSIFIERS": "INDICATORS"}, globals())
+_INDICATOR_FIELDS = kernels.INDICATOR_FIELDS
 
 
 class IndicatorEnsemble(Ensemble):

@@ -1,8 +1,8 @@
 """Every periodic orbit of exact period ``m`` of the torus map, and the families of them.
 
-:func:`enumerate_orbits` runs the tree search (:mod:`~warpratchet.orbits.search`) and decides
+:func:`enumerate_orbits` runs the tree search (:mod:`~warpratchet.orbits._search`) and decides
 each candidate itinerary (a least rotation, so each cycle once) exactly
-(:mod:`~warpratchet.orbits.exact`):
+(:mod:`~warpratchet.orbits._exact`):
 
 * ``det(A - I) != 0`` and the itinerary primitive: the 2x2 solve gives one point; it is an
   :class:`Orbit` iff the exact map, iterated from it, follows the itinerary and returns. A
@@ -16,7 +16,7 @@ each candidate itinerary (a least rotation, so each cycle once) exactly
   points all have a lower period (the map of ``V^d``, ``d < r``, fixes its vertices) is skipped.
 
 Periodic points are those of the paper's map at the float64 ``K, b1, b2`` (Eq. mmc solved
-exactly, :mod:`~warpratchet.orbits.exact`); the reported coordinates are their correctly
+exactly, :mod:`~warpratchet.orbits._exact`); the reported coordinates are their correctly
 rounded float64 values.
 
 Pure: no Warp, no I/O.
@@ -33,10 +33,10 @@ from functools import cached_property
 import numpy as np
 
 from ..params import MapParams
-from . import cells
-from .exact import Composite, ExactMap, as_fractions, from_fractions
-from .search import search
-from .symbols import decode, winding
+from . import _cells
+from ._exact import Composite, ExactMap, as_fractions, from_fractions
+from ._search import search
+from ._symbols import decode, winding
 
 __all__ = [
     "KINDS",
@@ -199,7 +199,7 @@ def _lower_period(em: ExactMap, word, root: int, points) -> bool:
     return False
 
 
-def _family(em: ExactMap, word, root: int, cell: cells.Cell, comp: Composite) -> Family | Orbit | None:
+def _family(em: ExactMap, word, root: int, cell: _cells.Cell, comp: Composite) -> Family | Orbit | None:
     """The periodic points of a degenerate itinerary (``tr A = 2``): a Family, an Orbit (a line of
     solutions that meets the cell in one point), or None."""
     identity = comp.linear_is_identity()
@@ -214,13 +214,13 @@ def _family(em: ExactMap, word, root: int, cell: cells.Cell, comp: Composite) ->
         other = rows[1 - rows.index(r)]
         if other[0] * r[2] != other[2] * r[0] or other[1] * r[2] != other[2] * r[1]:
             return None  # [A - I | b] has rank 2: no solution
-        start, identity_map = cells.at_start(cell), em.identity()
-        fixed = cells.clip(start, r, identity_map)
-        fixed = cells.clip(fixed, (-r[0], -r[1], -r[2]), identity_map) if fixed is not None else None
+        start, identity_map = _cells.at_start(cell), em.identity()
+        fixed = _cells.clip(start, r, identity_map)
+        fixed = _cells.clip(fixed, (-r[0], -r[1], -r[2]), identity_map) if fixed is not None else None
         if fixed is None:
             return None
-    points = cells.vertices(fixed)
-    area = cells.area(points) if len(points) > 2 else Fraction(0)
+    points = _cells.vertices(fixed)
+    area = _cells.area(points) if len(points) > 2 else Fraction(0)
     if area == 0 and len(points) > 2:  # collinear: keep the end points
         ends = sorted(set(points))
         points = [ends[0], ends[-1]]

@@ -1,8 +1,8 @@
 """Tree search for the itineraries of length ``m`` that some point of the torus follows.
 
-Depth-first over symbols (:mod:`~warpratchet.orbits.symbols`): a node is a prefix of ``i``
-symbols with its composite ``z0 -> z_i`` (:class:`~warpratchet.orbits.exact.Composite`) and its
-exact cell (:mod:`~warpratchet.orbits.cells`). A child cuts the cell by the half-planes of the
+Depth-first over symbols (:mod:`~warpratchet.orbits._symbols`): a node is a prefix of ``i``
+symbols with its composite ``z0 -> z_i`` (:class:`~warpratchet.orbits._exact.Composite`) and its
+exact cell (:mod:`~warpratchet.orbits._cells`). A child cuts the cell by the half-planes of the
 next symbol pulled back to ``z0``; an empty cell prunes the whole subtree. The number of
 admissible itineraries grows like ``e^(h m)`` (about ``3.3^m`` at K = 3, b1 = 0.1, b2 = 0.01),
 far below the ``30^m`` words of a brute-force enumeration. Everything is exact, so the leaves
@@ -21,9 +21,9 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from .cells import Cell, advance, clip, unit_square
-from .exact import Composite, ExactMap
-from .symbols import K_RANGE, j_constraint, k_constraints, piece_constraints
+from ._cells import Cell, advance, clip, unit_square
+from ._exact import Composite, ExactMap
+from ._symbols import K_RANGE, j_constraint, k_constraints, piece_constraints
 
 __all__ = ["search"]
 

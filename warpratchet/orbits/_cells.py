@@ -15,7 +15,7 @@ float64 geometry cannot tell an empty cell from a thin one after a few steps.
 
 A cell may degenerate to a segment or a point (points on a boundary line that the half-open
 rules give to it); only closures are computed here, the half-open rules are applied by
-:meth:`~warpratchet.orbits.exact.ExactMap.follows`.
+:meth:`~warpratchet.orbits._exact.ExactMap.follows`.
 
 Pure: no Warp, no I/O.
 """
@@ -25,7 +25,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from fractions import Fraction
 
-from .exact import Composite, ExactMap
+from ._exact import Composite, ExactMap
 
 __all__ = ["Cell", "unit_square", "clip", "advance", "at_start", "vertices", "area"]
 

@@ -8,7 +8,7 @@ arithmetic (the prefilter of the brute-force test of the orbit search), and the 
 its cost (``benchmarks/orbits.py``). Nothing here is exact: a fixed point in float64 is a
 candidate, which exact arithmetic must confirm.
 
-The alphabet is that of :mod:`~warpratchet.orbits.symbols`, built from the force's piece table:
+The alphabet is that of :mod:`~warpratchet.orbits._symbols`, built from the force's piece table:
 word entries are symbol codes, and row ``c`` of :func:`symbol_table` is ``decode(c)``.
 
 Pure: no Warp, no I/O.
@@ -21,14 +21,14 @@ import itertools
 import numpy as np
 
 from ..params import MapParams
-from .symbols import alphabet, decode
+from ._symbols import alphabet, decode
 
 __all__ = ["symbol_table", "all_words", "word_kicks", "compose", "fixed_points"]
 
 
 def symbol_table(pieces: int) -> np.ndarray:
     """``(piece, k, j)`` of the symbol codes of a force of ``pieces`` pieces, shape ``(10 pieces, 3)``:
-    row ``c`` is :func:`~warpratchet.orbits.symbols.decode` of the code ``c``."""
+    row ``c`` is :func:`~warpratchet.orbits._symbols.decode` of the code ``c``."""
     codes = alphabet(pieces)
     table = np.zeros((max(codes) + 1, 3), dtype=np.int64)
     table[list(codes)] = [decode(code) for code in codes]

@@ -17,7 +17,7 @@ Checkpoints sit at global step numbers, so chunking does not change the result; 
 accumulators must start at zero at global step 0. ``reference.advance_indicators`` is the NumPy
 twin, bit for bit.
 
-``fdlog`` is the project's own logarithm (:mod:`.logarithm`), the same bits on the CPU body's
+``fdlog`` is the project's own logarithm (:mod:`._logarithm`), the same bits on the CPU body's
 lane vectors, the portable body (CUDA) and in NumPy, and cheaper than the C library's ``log``
 lane by lane (the measurements, where the rest of the kernel's time goes, and how the values
 moved when it replaced that ``log`` are in ``benchmarks/README.md``).
@@ -25,9 +25,9 @@ moved when it replaced that ``log`` are in ``benchmarks/README.md``).
 
 import warp as wp
 
-from .advance import Variant, advance_kernel
-from .logarithm import FDLOG_VECTOR, fdlog
-from .step import INTERLEAVE, VECTOR_TYPES, Lanes, LaneVector, load_lane_vector, store_lane_vector
+from ._advance import Variant, advance_kernel
+from ._logarithm import FDLOG_VECTOR, fdlog
+from ._step import INTERLEAVE, VECTOR_TYPES, Lanes, LaneVector, load_lane_vector, store_lane_vector
 
 __all__ = ["advance_map_indicators", "INDICATORS", "INDICATOR_FIELDS"]
 

@@ -1,7 +1,7 @@
 """The island census of the torus and the three routes to ``A``, Eq. (sum), for any K.
 
 Sample the unit torus (random points or a regular lattice), classify every point
-(:func:`~warpratchet.sumrule.islands.classify`), and report the areas with their errors
+(:func:`~warpratchet.sumrule._islands.classify`), and report the areas with their errors
 (see :class:`Census`):
 
 * Eq. (sum): ``A_sumrule = -sum_j S_j nu_j / S_C``;
@@ -29,7 +29,7 @@ from ..errors import check_count, renamed_attribute
 from ..limits import MAX_POINTS
 from ..observables import mean_stderr
 from ..params import MapParams
-from .islands import PointClasses, check_census_memory, classify
+from ._islands import PointClasses, check_census_memory, classify
 
 __all__ = ["IslandClass", "Census", "lattice", "census"]
 
@@ -173,7 +173,7 @@ def census(
         Seed of the random points.
     **options
         ``m_max``, ``indicator``, ``threshold``, ``threads``, ``device``, ``observers``: see
-        :func:`~warpratchet.sumrule.islands.classify`.
+        :func:`~warpratchet.sumrule._islands.classify`.
 
     Returns
     -------

@@ -37,11 +37,11 @@ from .._files import LIBVER, abandon_h5, check_new_path, claim, publish, sync_h5
 from .._storage import StorageError, ensure_space, h5_bytes, storage_cause, storage_errors
 from ..errors import FileFormatError
 from ..spec import SweepSpec, attr_value
-from . import records
-from .reading import definition_mismatch, open_for_reading, read_definition, read_sweep, valid_rows
-from .records import FORMAT, FORMAT_VERSION, READABLE_VERSIONS, ROW_DTYPE, ROW_FIELDS, to_record
+from . import _records
+from ._reading import definition_mismatch, open_for_reading, read_definition, read_sweep, valid_rows
+from ._records import FORMAT, FORMAT_VERSION, READABLE_VERSIONS, ROW_DTYPE, ROW_FIELDS, to_record
 
-# read_sweep and read_definition are re-exported: ``from warpratchet.sweep.file import read_sweep``
+# read_sweep and read_definition are re-exported: ``from warpratchet.sweep._file import read_sweep``
 # keeps working.
 
 try:  # advisory locks; absent on Windows
@@ -100,10 +100,10 @@ def _create(
     )
     _describe(ds, "see column_units", "one record per finished point, in completion order")
     ds.attrs["column_units"] = np.array(
-        [records.ROW_DESCRIPTIONS[n][0].encode() for n in ROW_FIELDS], dtype="S16"
+        [_records.ROW_DESCRIPTIONS[n][0].encode() for n in ROW_FIELDS], dtype="S16"
     )
     ds.attrs["column_long_names"] = np.array(
-        [records.ROW_DESCRIPTIONS[n][1].encode() for n in ROW_FIELDS], dtype="S64"
+        [_records.ROW_DESCRIPTIONS[n][1].encode() for n in ROW_FIELDS], dtype="S64"
     )
     valid = f.create_dataset("rows_valid", data=np.array([len(rows)], np.int64), chunks=(1,), fletcher32=True)
     _describe(valid, "1", "how many records of rows are complete (raised after them)")

@@ -21,7 +21,7 @@ from .._h5verify import first_line, refresh
 from ..errors import FileFormatError
 from ..params import MapParams
 from ..spec import SweepSpec, attr_value, params_of
-from .records import FORMAT, ROW_DESCRIPTIONS, ROW_FIELDS, from_record
+from ._records import FORMAT, ROW_DESCRIPTIONS, ROW_FIELDS, from_record
 
 __all__ = [
     "read_sweep",

@@ -3,7 +3,7 @@
 :func:`verify_sweep` reads every dataset and attribute (format v2 checksums every record, so a
 damaged one is found) and cross-checks each valid row against what it must be: its ``K, b1,
 b2`` equal the point's entry of ``parameters``, its seed is the point's own
-(:func:`~warpratchet.sweep.run.point_seed`), its ``steps``/``init`` are the spec's, its domain
+(:func:`~warpratchet.sweep._run.point_seed`), its ``steps``/``init`` are the spec's, its domain
 and ``A_theory`` are the closed forms', ``chaotic_fraction = chaotic_points / points``. Format
 v1 files carry no checksums: the cross-checks are all that can be checked there, and the
 report says so.
@@ -20,9 +20,9 @@ from .._h5verify import read_everything
 from ..errors import FileFormatError
 from ..params import MapParams
 from ..spec import SweepSpec, attr_value
-from .reading import first_line, open_for_reading, stored_params, valid_rows
-from .records import FORMAT, READABLE_VERSIONS
-from .run import point_seed
+from ._reading import first_line, open_for_reading, stored_params, valid_rows
+from ._records import FORMAT, READABLE_VERSIONS
+from ._run import point_seed
 
 __all__ = ["verify_sweep", "row_problems"]
 

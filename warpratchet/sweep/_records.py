@@ -2,7 +2,7 @@
 
 A row is one finished sweep point (:func:`warpratchet.sweep.run_point`); :data:`ROW_DTYPE` is its
 HDF5 compound type, :data:`ROW_DESCRIPTIONS` the units and description of each column. The layout
-of the file is in :mod:`warpratchet.sweep.file`.
+of the file is in :mod:`warpratchet.sweep._file`.
 """
 
 from __future__ import annotations

@@ -8,8 +8,8 @@ from __future__ import annotations
 from collections import Counter
 
 from ..params import MapParams, map_text
-from .enumerate import KINDS, SLOPE_ULPS, Enumeration, Family, Orbit, enumerate_orbits
-from .symbols import describe
+from ._enumerate import KINDS, SLOPE_ULPS, Enumeration, Family, Orbit, enumerate_orbits
+from ._symbols import describe
 
 __all__ = ["orbits_report", "format_orbits", "orbit_json", "family_json"]
 

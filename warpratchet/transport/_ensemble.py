@@ -1,10 +1,10 @@
 """:class:`TransportEnsemble`: an ensemble whose runs also count return times and flights.
 
-The kernel variant :mod:`warpratchet.kernels.transport` advances the orbit bitwise as the plain
+The kernel variant :mod:`warpratchet.kernels._transport` advances the orbit bitwise as the plain
 kernel does and counts, inside the step loop, the completed return gaps to B and flights into
-log2-binned histograms (:mod:`.histograms`). This class owns the per-point carry state (runs in
+log2-binned histograms (:mod:`._histograms`). This class owns the per-point carry state (runs in
 progress, one int64 triple per point, 24 bytes), the running totals of the histograms, and the
-spread of the momentum at log-spaced steps (:mod:`.diffusion`, recorded by an observer that
+spread of the momentum at log-spaced steps (:mod:`._diffusion`, recorded by an observer that
 each :meth:`~TransportEnsemble.run` adds) from which the exponent mu is fitted.
 
 Exactness. Each launch counts into a histogram array of its own; the totals are int64 sums,
@@ -25,15 +25,15 @@ import warp as wp
 
 from ..ensemble import Ensemble
 from ..errors import check_choice, check_optional, check_real
-from ..kernels.transport import advance_map_transport
+from ..kernels._transport import advance_map_transport
 from ..observables import THRESHOLD_RULES
 from ..params import MapParams
 from ..runloop import Observer
 from ..state import STATE_FIELDS
-from .diffusion import SPREAD_BYTES_PER_POINT, Spread
-from .fits import GROUPS, DiffusionFit, diffusion_fit, pooled_variance
-from .histograms import BINS, CARRY_FIELDS, HISTOGRAMS, Histograms, open_runs
-from .twin import initial_carry
+from ._diffusion import SPREAD_BYTES_PER_POINT, Spread
+from ._fits import GROUPS, DiffusionFit, diffusion_fit, pooled_variance
+from ._histograms import BINS, CARRY_FIELDS, HISTOGRAMS, Histograms, open_runs
+from ._twin import initial_carry
 
 __all__ = ["TransportEnsemble", "TransportState"]
 
@@ -44,7 +44,7 @@ class TransportState:
 
     ``carry``: :data:`CARRY_FIELDS`, int64 ``(points,)`` each; ``counts``: ``(3, BINS)`` int64;
     ``spread_steps``: ``(rows,)`` int64 and ``spread``: ``(rows, GROUPS, 3)`` float64, the
-    moments of :mod:`.diffusion`.
+    moments of :mod:`._diffusion`.
     """
 
     carry: dict[str, np.ndarray]
@@ -87,7 +87,7 @@ class TransportEnsemble(Ensemble):
     @classmethod
     def bytes_per_point(cls) -> int:
         """Memory per point: the state (56 B), the carry (:data:`CARRY_FIELDS`, int64, 24 B) and a
-        spread row's arrays (:data:`~.diffusion.SPREAD_BYTES_PER_POINT`, 17 B). The kernel's
+        spread row's arrays (:data:`~._diffusion.SPREAD_BYTES_PER_POINT`, 17 B). The kernel's
         histogram and scratch arrays are per launch, not per point."""
         return 8 * len(STATE_FIELDS) + 8 * len(CARRY_FIELDS) + SPREAD_BYTES_PER_POINT
 
@@ -133,7 +133,7 @@ class TransportEnsemble(Ensemble):
         return super().run(steps, [Spread(self), *observers], chunk_steps, **kwargs)
 
     def record_spread(self, step: int, moments: np.ndarray, ftle: np.ndarray | None = None) -> None:
-        """Append a row of :mod:`.diffusion` (called by its observer at its steps); ``ftle``, the
+        """Append a row of :mod:`._diffusion` (called by its observer at its steps); ``ftle``, the
         points' FTLE at ``step`` computed for it, is kept until the next chunk (:meth:`known_ftle`)."""
         self._known_ftle = None if ftle is None else (int(step), ftle)
         if self._spread_steps and step <= self._spread_steps[-1]:
@@ -186,19 +186,19 @@ class TransportEnsemble(Ensemble):
         return np.array(self._spread_steps, dtype=np.int64), var
 
     def diffusion(self, decades: float | None = None) -> DiffusionFit:
-        """The exponent mu of ``V(n) ~ n^mu`` with its jackknife error (:func:`.fits.diffusion_fit`)."""
+        """The exponent mu of ``V(n) ~ n^mu`` with its jackknife error (:func:`._fits.diffusion_fit`)."""
         steps, var = self.spread()
         moments = np.array(self._spread).reshape(len(self._spread), GROUPS, 3).transpose(1, 0, 2)
         kwargs = {} if decades is None else {"decades": decades}
         return diffusion_fit(steps, var, moments if len(self._spread) else None, **kwargs)
 
     def histograms(self) -> Histograms:
-        """The completed runs counted so far (:class:`~warpratchet.transport.histograms.Histograms`)."""
+        """The completed runs counted so far (:class:`~warpratchet.transport._histograms.Histograms`)."""
         return Histograms.from_counts(self._counts, self.step)
 
     def report(self) -> dict:
-        """The ``"transport"`` object of ``run --json`` (:func:`.report.transport_report`)."""
-        from .report import transport_report
+        """The ``"transport"`` object of ``run --json`` (:func:`._report.transport_report`)."""
+        from ._report import transport_report
 
         return transport_report(self.histograms(), self.open_runs(), self.diffusion())
 

@@ -1,6 +1,6 @@
 """The transport CPU hooks' block decoding: 8 buffered rows at once, as bit planes.
 
-A C++ snippet, :data:`BLOCK_CPU`, inserted into :data:`~.transport_cpu.DECODE_CPU` before its row
+A C++ snippet, :data:`BLOCK_CPU`, inserted into :data:`~._transport_cpu.DECODE_CPU` before its row
 by row loop (it uses that snippet's trackers, tallies and helpers): each full block of 8 rows is
 transposed into bit planes (one byte per lane, bit i = row i), and its visits to B and gain
 changes are found with bit tricks on the planes. On the AVX2 path (16 lanes, rows as coded bytes)

@@ -15,9 +15,9 @@ lengths in ``[2^k, 2^(k+1))``, :data:`BINS` bins), exact int64 counts:
   histogram of the sign of ``v``) and starts a new one.
 
 Two implementations, one count: the portable hooks (plain Warp, a lane at a time; what CUDA
-runs) and the CPU hooks of :mod:`.transport_cpu` (codes per step, decoded in blocks as byte
+runs) and the CPU hooks of :mod:`._transport_cpu` (codes per step, decoded in blocks as byte
 vectors), which ``tests/analyses/test_transport.py`` checks against each other and against the NumPy twin
-:mod:`warpratchet.transport.twin`.
+:mod:`warpratchet.transport._twin`.
 
 The three per-point values are the carry state: runs still open at the end of a launch continue
 in the next one, so chunking, thread count and resuming (the carry is checkpointed with the
@@ -31,10 +31,10 @@ import numpy as np
 import warp as wp
 
 from ..errors import KernelError
-from .advance import AdvanceKernel, Variant
-from .runtime import CPU_ISA
-from .step import INTERLEAVE, Coefficients, Lanes, cpu_steps_source, load_lanes, store_lane_vector
-from .transport_cpu import (
+from ._advance import AdvanceKernel, Variant
+from ._runtime import CPU_ISA
+from ._step import INTERLEAVE, Coefficients, Lanes, cpu_steps_source, load_lanes, store_lane_vector
+from ._transport_cpu import (
     BINS,
     CLAIM_CPU,
     CONFLICT_WORD,
@@ -81,7 +81,7 @@ class _Accumulators:
 class _CpuAccumulators:
     """The CPU hooks' per-thread state: a few scalars. Their buffer and byte trackers live in the
     launch's ``scratch`` array, not here: Warp zero-initialises a thread's struct, and a 4.6 KB
-    buffer inside it makes every launch pay for that (:mod:`.transport_cpu`)."""
+    buffer inside it makes every launch pay for that (:mod:`._transport_cpu`)."""
 
     arrays: _Arrays  # carry (read by the first decode, written by the store), counts, scratch
     first: int
@@ -149,7 +149,7 @@ _RECORDING_STEPS: dict[str, wp.Function] = {}
 
 
 def _recording_steps(force) -> wp.Function:
-    """The CPU body's steps of ``force`` with :data:`.transport_cpu.RECORD_CPU` inside: each step's
+    """The CPU body's steps of ``force`` with :data:`._transport_cpu.RECORD_CPU` inside: each step's
     row written from the lanes in registers (a thread's lanes and its 8-step runs between checks
     stay in registers, as in ``advance_map``)."""
     tag = "paper" if force.family == "paper" else force.key
@@ -259,7 +259,7 @@ class _TransportKernel(AdvanceKernel):
         ------
         KernelError
             (a ``RuntimeError``) Two CPU threads used the scratch at once (the guard of
-            :mod:`.transport_cpu`): this launch's counts and carry are wrong, so they are
+            :mod:`._transport_cpu`): this launch's counts and carry are wrong, so they are
             refused, not returned.
         """
         if block_rows not in (1, 8):

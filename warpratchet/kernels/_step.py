@@ -27,7 +27,7 @@ Two bodies, one arithmetic:
 
 * :data:`PORTABLE`, plain Warp (a scalar step per lane), compiles for CUDA and the CPU; its
   one-point functions ``_step_point`` and ``_renorm_point`` also make ``advance_map``'s CUDA kernel,
-  which runs one point per GPU thread (:mod:`warpratchet.kernels.advance`);
+  which runs one point per GPU thread (:mod:`warpratchet.kernels._advance`);
 * :data:`CPU`, the same operations on whole lane vectors in C++ (``wp.func_native`` with clang
   vector extensions): ``floor`` is one ``vrndscalepd`` per 8 lanes (AVX-512), each three-way
   choice a pair of masked blends, and no libm call sits in the step (only ``log`` in a renormalisation,
@@ -42,7 +42,7 @@ from typing import Any, NamedTuple
 import warp as wp
 
 from ..force import Force, cpp_source, warp_source
-from .runtime import CPU_ISA
+from ._runtime import CPU_ISA
 
 __all__ = [
     "INTERLEAVE",
@@ -72,7 +72,7 @@ RENORM_CHECK_EVERY = 8
 
 
 #: Points advanced per Warp thread: 32 on the AVX-512 path (four 8-wide vectors per field in 32
-#: vector registers), 16 on the AVX2 path (16 registers of 4); :data:`.runtime.CPU_ISA` chooses.
+#: vector registers), 16 on the AVX2 path (16 registers of 4); :data:`._runtime.CPU_ISA` chooses.
 #: A power of two: clang pads a vector of any other length, which the lane structs do not.
 INTERLEAVE = 32 if CPU_ISA == "avx512" else 16
 

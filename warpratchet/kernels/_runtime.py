@@ -1,6 +1,6 @@
 """Warp start-up and the compiler options of warpratchet's Warp modules.
 
-The kernels live in two Warp modules (``advance.py`` builds them): ``warpratchet.kernels.cpu``
+The kernels live in two Warp modules (``_advance.py`` builds them): ``warpratchet.kernels.cpu``
 uses the CPU step body (clang vector extensions, AVX-512 where the CPU has it) and is only ever
 compiled for the CPU; ``warpratchet.kernels.portable`` uses the plain Warp step body and is what
 runs on CUDA devices (and in the test that checks both bodies agree bit for bit on the CPU).

@@ -14,7 +14,7 @@ state (the registers spill). So the CPU hooks split the work:
   row's events counted by lengths ``< 2``, ``< 4``, ``< 8`` with a popcount of the event mask;
   the rare events of length 8 or more go to the launch's histogram array one by one. Where the
   CPU has AVX-512 and GFNI, and on the AVX2 path, each full block of 8 rows is decoded at once
-  instead (:mod:`.transport_block`).
+  instead (:mod:`._transport_block`).
 
 On the AVX2 path (16 lanes in 16 registers) a hook after each step spills the lanes around it, so
 there the steps between two checks run in one call with the recording inside the loop
@@ -35,8 +35,8 @@ for every thread, which for a 4.6 KB buffer costs a noticeable part of a launch
 owner and conflict words) turns threads that share it at once into an error.
 """
 
-from .step import INTERLEAVE
-from .transport_block import BLOCK_CODED_CPU, BLOCK_CPU
+from ._step import INTERLEAVE
+from ._transport_block import BLOCK_CODED_CPU, BLOCK_CPU
 
 __all__ = [
     "BINS",
@@ -81,7 +81,7 @@ CONFLICT_WORD = _GUARD // 8 + 1
 # address of its first carry element, unique across launches) into the owner word when it starts
 # and checks it at every decode and at its end: two threads whose lifetimes overlap write inside
 # each other's, so one of them finds another tag and sets the conflict word, which the launch
-# turns into an error (kernels.transport) instead of counts that would be silently wrong.
+# turns into an error (kernels._transport) instead of counts that would be silently wrong.
 _OWNER_TAG = "(unsigned long long)wp::address(acc.arrays.last_visit, acc.first)"
 #: The thread's claim on the scratch (``load``, once before its step loop: not in the loop,
 #: where the tag's address arithmetic cost the step loop 18 instructions and 12 stack accesses).

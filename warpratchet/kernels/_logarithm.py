@@ -2,7 +2,7 @@
 
 The C library's ``log`` is not one function: glibc, CUDA's libdevice and NumPy's SIMD loops round
 a few arguments per million differently, and a vectorised ``log`` in the CPU body would be yet
-another. The chaos indicators (:mod:`.indicators`) take a logarithm of every point every 8 steps,
+another. The chaos indicators (:mod:`._indicators`) take a logarithm of every point every 8 steps,
 so they use this one, written three times operation by operation: the CPU body's lane vectors
 (:data:`FDLOG_VECTOR`, C++), the portable body (:func:`fdlog`, plain Warp, what CUDA runs) and
 NumPy (:func:`warpratchet.reference.fdlog`). The three are bitwise equal by construction

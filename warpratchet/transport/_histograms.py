@@ -1,7 +1,7 @@
 """Log2-binned histograms of return times and flights, and the runs still open (pure NumPy).
 
 Bin ``k`` holds lengths ``L`` with ``2^k <= L < 2^(k+1)`` (:data:`BINS` bins cover every int64
-length). The kernel variant :mod:`warpratchet.kernels.transport` counts completed runs; a run
+length). The kernel variant :mod:`warpratchet.kernels._transport` counts completed runs; a run
 still open when the ensemble is read (a return gap not yet closed by a visit to B, a flight still
 in progress) is not in those counts, and :func:`open_runs` bins those from the carry state, so
 that a fit can see how many long runs the finite run length has cut off.
@@ -19,7 +19,7 @@ __all__ = ["BINS", "HISTOGRAMS", "CARRY_FIELDS", "bin_of", "edges", "Histograms"
 BINS = 64
 #: Histogram names, in the kernel's order.
 HISTOGRAMS = ("return_times", "flights_plus", "flights_minus")
-#: Per-point carry state, int64 arrays (:mod:`warpratchet.kernels.transport`).
+#: Per-point carry state, int64 arrays (:mod:`warpratchet.kernels._transport`).
 CARRY_FIELDS = ("last_visit", "flight_gain", "flight_start")
 
 

@@ -1,4 +1,4 @@
-"""The NumPy twin of the transport kernel (:mod:`warpratchet.kernels.transport`), for tests.
+"""The NumPy twin of the transport kernel (:mod:`warpratchet.kernels._transport`), for tests.
 
 :func:`advance` steps :func:`warpratchet.reference.advance` one iteration at a time (the
 kernels' orbit, bit for bit) and applies the definitions of docs/transport.md to each step: the gain is
@@ -13,7 +13,7 @@ import numpy as np
 from ..params import MapParams
 from ..reference import advance as advance_map
 from ..regions import in_strip
-from .histograms import BINS, CARRY_FIELDS, HISTOGRAMS, bin_of
+from ._histograms import BINS, CARRY_FIELDS, HISTOGRAMS, bin_of
 
 __all__ = ["initial_carry", "advance"]
 

@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from .fits import DiffusionFit, tail_fit
-from .histograms import HISTOGRAMS, Histograms
+from ._fits import DiffusionFit, tail_fit
+from ._histograms import HISTOGRAMS, Histograms
 
 __all__ = ["transport_report", "format_transport", "counts_transport"]
 
@@ -29,9 +29,9 @@ def transport_report(
     Keys: ``return_times`` (``edges``, ``counts``, ``open``) and ``flights`` (``edges``,
     ``counts_plus``, ``counts_minus``, ``open_plus``, ``open_minus``): completed runs per log2
     bin (edges in steps) and the runs still open at the end, binned by their length so far;
-    ``mu``, ``mu_stderr`` and ``mu_fit`` (:class:`~warpratchet.transport.fits.DiffusionFit`);
+    ``mu``, ``mu_stderr`` and ``mu_fit`` (:class:`~warpratchet.transport._fits.DiffusionFit`);
     ``tail_exponents``: ``return_times``, ``flights_plus``, ``flights_minus``
-    (:class:`~warpratchet.transport.fits.TailFit`).
+    (:class:`~warpratchet.transport._fits.TailFit`).
     """
     bins = max(completed.used_bins(), still_open.used_bins())
     out = completed.as_dict(bins)

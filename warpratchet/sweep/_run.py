@@ -33,8 +33,8 @@ from ..limits import kernel_range_error
 from ..params import MapParams
 from ..progress import ProgressBar
 from ..spec import SweepSpec, check_setting
-from .file import ROW_FIELDS, SweepFile
-from .paths import check_sweep_size
+from ._file import ROW_FIELDS, SweepFile
+from ._paths import check_sweep_size
 
 __all__ = ["point_seed", "run_point", "run_sweep"]
 
@@ -81,7 +81,7 @@ def run_point(
     Returns
     -------
     dict
-        One row, keys :data:`~warpratchet.sweep.file.ROW_FIELDS` (per-iteration A and FTLE,
+        One row, keys :data:`~warpratchet.sweep._file.ROW_FIELDS` (per-iteration A and FTLE,
         the convergence verdict of the run's :class:`~warpratchet.history.History`: robust
         standard error, drift of A between n/2 and n, verdict; seconds of wall time, including
         the history's rows).

@@ -3,11 +3,11 @@
 :class:`Spread` is an observer that a :class:`~warpratchet.transport.TransportEnsemble` adds to
 each of its runs: at the global steps ``round(10^(k/8))`` (:func:`spread_steps`, the log-spaced
 part of :func:`warpratchet.history.history_steps`, which does not depend on the run's target)
-it records, for each of :data:`~warpratchet.transport.fits.GROUPS` groups of points (point ``i``
+it records, for each of :data:`~warpratchet.transport._fits.GROUPS` groups of points (point ``i``
 in group ``i mod G``), the count, mean and sum of squared deviations of ``p_n - p_0`` over the
 chaotic points (FTLE above the threshold at ``n``, as in History rows). Pooled, they give
 ``var_dp_chaotic`` of a History row at that step; the groups give the jackknife error of mu
-(:func:`~warpratchet.transport.fits.diffusion_fit`). The rows are part of the ensemble's
+(:func:`~warpratchet.transport._fits.diffusion_fit`). The rows are part of the ensemble's
 transport state, so an archived run resumes them exactly.
 """
 
@@ -21,7 +21,7 @@ import numpy as np
 from ..history import log_steps
 from ..observables import lyapunov, lyapunov_threshold, momentum_gain
 from ..runloop import Observer
-from .fits import GROUPS
+from ._fits import GROUPS
 
 __all__ = ["SPREAD_PER_DECADE", "SPREAD_BYTES_PER_POINT", "spread_steps", "spread_moments", "Spread"]
 
@@ -77,7 +77,7 @@ def spread_moments(
     pool: Executor | None = None,
     ftle: np.ndarray | None = None,
 ) -> np.ndarray:
-    """:func:`~warpratchet.transport.fits.group_moments` of ``p_n - p_0`` over the chaotic points.
+    """:func:`~warpratchet.transport._fits.group_moments` of ``p_n - p_0`` over the chaotic points.
 
     Returns shape ``(groups, 3)``: count, mean, sum of squared deviations per group. The FTLE and
     the gains are elementwise, computed in blocks of :data:`_BLOCK` points (on ``pool``'s threads

@@ -1,8 +1,8 @@
 """Recording a run as it goes: :class:`RecordingSink`, an observer of :meth:`Ensemble.run`.
 
-The sink draws a fixed random subsample of the ensemble at the frames of a :class:`~.plan.Plan`
-(log-spaced steps within a size and a time budget, :mod:`.plan`) into a
-:class:`~warpratchet.recording.stream.PhaseSpaceRecording`, with the ensemble summary of
+The sink draws a fixed random subsample of the ensemble at the frames of a :class:`~._plan.Plan`
+(log-spaced steps within a size and a time budget, :mod:`._plan`) into a
+:class:`~warpratchet.recording._stream.PhaseSpaceRecording`, with the ensemble summary of
 :func:`~warpratchet.observables.summarize`; between frames it adds summary rows to the time
 series when they cost under 2% of the kernel time since the last one. It asks the run loop to
 stop at its frames (``next_stop``), so frames land on their steps whatever the chunking.
@@ -28,7 +28,7 @@ from ..observables import (
     lyapunov_threshold,
     rule_formula,
 )
-from .plan import (
+from ._plan import (
     DEFAULT_MAX_BYTES,
     DEFAULT_MAX_FRAMES,
     DEFAULT_MAX_POINTS,
@@ -38,8 +38,8 @@ from .plan import (
     plan_frames,
     probe_throughput,
 )
-from .scene import COLOR_BY, require_rerun
-from .stream import PhaseSpaceRecording, check_new_file
+from ._scene import COLOR_BY, require_rerun
+from ._stream import PhaseSpaceRecording, check_new_file
 
 __all__ = ["DEFAULT_MAX_POINTS", "DEFAULT_MAX_FRAMES", "DEFAULT_MAX_BYTES", "frame_every", "RecordingSink"]
 
@@ -55,7 +55,7 @@ class RecordingSink(Observer):
 
     A frame (the cloud of a fixed subsample plus the ensemble summary of
     :func:`~warpratchet.observables.summarize`) is logged when the run starts, at the steps of
-    its plan (log-spaced by default, or the multiples of ``every``; :func:`~.plan.plan_frames`),
+    its plan (log-spaced by default, or the multiples of ``every``; :func:`~._plan.plan_frames`),
     and when the run ends (also when it is interrupted). Recording never changes the results.
 
     Parameters

@@ -10,7 +10,7 @@ Every point falls into
   layers trapped inside island chains, and orbits of ``C`` stuck to an island for the whole
   run (sticky orbits; their share falls as ``n`` grows, see ``docs/validation.md``);
 * the **global chaotic region** ``C``: chaotic by the chosen indicator
-  (:mod:`.indicators`) and in no island class;
+  (:mod:`._indicators`) and in no island class;
 * **unidentified**: regular by the indicator but with no rational ``nu`` of denominator
   ``<= m_max`` (islands of longer period, or orbits that have not settled); reported, never
   silently folded into ``C``.
@@ -29,7 +29,7 @@ from ..errors import NonFiniteStateError, check_choice, check_count, check_optio
 from ..limits import MAX_POINTS, check_memory
 from ..observables import finite_time_acceleration, lyapunov
 from ..params import MapParams
-from .indicators import INDICATORS, IndicatorEnsemble, chaotic_by, default_threshold
+from ._indicators import INDICATORS, IndicatorEnsemble, chaotic_by, default_threshold
 
 __all__ = [
     "DEFAULT_M_MAX",
@@ -210,7 +210,7 @@ def classify(
         Iterations ``n >= min_steps(m_max)``; the momentum is also recorded at
         ``n i / CHECKPOINTS`` for :func:`identify_nu`.
     m_max, indicator, threshold
-        See :func:`identify_nu` and :func:`~warpratchet.sumrule.indicators.chaotic_by`.
+        See :func:`identify_nu` and :func:`~warpratchet.sumrule._indicators.chaotic_by`.
     threads, device, observers
         Passed to the ensemble and its :meth:`~warpratchet.ensemble.Ensemble.run`.
     """

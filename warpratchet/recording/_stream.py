@@ -3,7 +3,7 @@
 Recordings go to an explicit ``rerun.RecordingStream`` (never the global one), so a process can
 write several; a file is written with a file sink and never overwrites an existing file
 (:func:`check_new_file`, built on :func:`warpratchet._files.check_new_path`). What is drawn
-where, and in which colours, is :mod:`.scene`.
+where, and in which colours, is :mod:`._scene`.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from .._files import check_new_path, storage_errors
 from ..errors import check_choice
 from ..observables import default_lyapunov_threshold
 from ..params import MapParams
-from .scene import (
+from ._scene import (
     CLASSES,
     CLOUD_PATH,
     COLOR_BY,

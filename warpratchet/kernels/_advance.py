@@ -2,7 +2,7 @@
 
 :func:`advance_kernel` turns a :class:`Variant` into an :class:`AdvanceKernel`: a Warp kernel
 that loads a thread's lanes, runs ``steps`` iterations of the step body of
-:mod:`warpratchet.kernels.step` (with the renormalisation check after every global step that
+:mod:`warpratchet.kernels._step` (with the renormalisation check after every global step that
 is a multiple of ``RENORM_CHECK_EVERY``) and stores them back, built twice, on the CPU body and
 on the portable one. A variant adds per-step work on top through two hooks, inlined into the
 loop: ``after_step`` (every step; sees the state and the step's facts ``gain`` and
@@ -33,8 +33,8 @@ from typing import Any
 
 import warp as wp
 
-from .runtime import CPU_MODULE, CPU_MODULE_OPTIONS, MODULE_OPTIONS, PORTABLE_MODULE, check_cpu_isa_runs
-from .step import CPU, INTERLEAVE, PORTABLE, RENORM_CHECK_EVERY, Body, Coefficients, State, force_bodies
+from ._runtime import CPU_MODULE, CPU_MODULE_OPTIONS, MODULE_OPTIONS, PORTABLE_MODULE, check_cpu_isa_runs
+from ._step import CPU, INTERLEAVE, PORTABLE, RENORM_CHECK_EVERY, Body, Coefficients, State, force_bodies
 
 __all__ = ["MAX_LAUNCH_STEPS", "Variant", "AdvanceKernel", "advance_kernel", "launch_dim"]
 
@@ -87,7 +87,7 @@ class Variant:
     point_store: Any = None
     #: ``cpu_steps(force) -> wp.func (ref accumulators, ref Lanes, Coefficients, count: int32,
     #: global_step: int64)``: with the CPU body, ``count`` steps from ``global_step`` with the
-    #: variant's per-step work inside them (:func:`.step.cpu_steps_source`), in place of the body's
+    #: variant's per-step work inside them (:func:`._step.cpu_steps_source`), in place of the body's
     #: ``step`` and ``cpu_after_step`` one step at a time.
     cpu_steps: Any = None
 
