@@ -26,7 +26,8 @@ import numpy as np
 from warpratchet import Ensemble, MapParams
 from warpratchet._h5 import LIBVER, create_h5
 from warpratchet._storage import h5_bytes
-from warpratchet.archive import ArchiveSink, layout
+from warpratchet.archive import ArchiveSink
+from warpratchet.archive._format import FILL
 from warpratchet.history import History
 from warpratchet.spec import SweepSpec
 from warpratchet.sweep import _file as sweep_file
@@ -87,7 +88,7 @@ def main() -> None:
     ):
         archive = os.path.join(folder, f"{label}.h5")
         initial = ensemble.views()  # the fields that are not uniform take storage
-        data = sum(h5_bytes(v.nbytes) for k, v in initial.items() if np.any(v != layout.FILL[k]))
+        data = sum(h5_bytes(v.nbytes) for k, v in initial.items() if np.any(v != FILL[k]))
         with ArchiveSink(archive, ensemble, history=history):
             size = os.path.getsize(archive)
         print(f"archive layout, 10000 points, {label}: {size - data} B beyond the initial state's {data} B")
