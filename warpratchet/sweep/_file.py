@@ -38,18 +38,15 @@ from .._storage import StorageError, ensure_space, h5_bytes, storage_cause, stor
 from ..errors import FileFormatError
 from ..spec import SweepSpec, attr_value
 from . import _records
-from ._reading import definition_mismatch, open_for_reading, read_definition, read_sweep, valid_rows
+from ._reading import definition_mismatch, open_for_reading, valid_rows
 from ._records import FORMAT, FORMAT_VERSION, READABLE_VERSIONS, ROW_DTYPE, ROW_FIELDS, to_record
-
-# read_sweep and read_definition are re-exported: ``from warpratchet.sweep._file import read_sweep``
-# keeps working.
 
 try:  # advisory locks; absent on Windows
     import fcntl
 except ImportError:  # pragma: no cover
     fcntl = None
 
-__all__ = ["SweepFile", "FORMAT", "FORMAT_VERSION", "ROW_FIELDS", "read_sweep", "read_definition"]
+__all__ = ["SweepFile", "FORMAT", "FORMAT_VERSION", "ROW_FIELDS"]
 
 #: File space of a sweep file's layout before any data (attributes, three datasets):
 #: ``scripts/h5_overhead.py`` measures 4559 B for 12 points and no records, and 1873 B of chunk
