@@ -14,7 +14,7 @@ import re
 import shutil
 
 import pytest
-from support import MAP_FLAGS
+from support import MAP_FLAGS, no_temporaries
 
 from warpratchet import Ensemble, MapParams, open_archive
 from warpratchet.archive import ArchiveSink
@@ -44,10 +44,6 @@ def _refusal(err: str, path) -> int:
     return round(float(match[1]) * UNITS[match[2]])
 
 
-def _no_temporaries(folder) -> None:
-    assert [p for p in os.listdir(folder) if p.endswith(".tmp")] == []
-
-
 def test_a_12_point_sweep_fits_in_256_kib(tmp_path, monkeypatch, capsys):
     out = tmp_path / "sweep.h5"
     _free(monkeypatch, 256 * 1024)
@@ -61,7 +57,7 @@ def test_the_sweep_estimate_covers_the_file_it_writes(tmp_path, monkeypatch, cap
     assert main([*SWEEP12, "--out", str(out)]) == 1
     estimate = _refusal(capsys.readouterr().err, out)
     assert not out.exists()
-    _no_temporaries(tmp_path)
+    no_temporaries(tmp_path)
     monkeypatch.undo()
     assert main([*SWEEP12, "--out", str(out)]) == 0
     written = os.path.getsize(out)
@@ -100,7 +96,7 @@ def test_the_resume_estimate_covers_the_rebuilt_copy(archive_7_5_mib, tmp_path, 
     assert main(["resume", str(path), "--steps", "4000", "--quiet"]) == 1
     estimate = _refusal(capsys.readouterr().err, path)
     assert path.read_bytes() == archive_7_5_mib[1]  # nothing the user had is lost
-    _no_temporaries(tmp_path)
+    no_temporaries(tmp_path)
     monkeypatch.undo()
     sink, _ = ArchiveSink.resume(path)
     try:
@@ -119,7 +115,7 @@ def test_a_run_without_room_for_its_initial_state_is_refused_before_it_starts(tm
     estimate = _refusal(capsys.readouterr().err, out)
     assert estimate >= 3 * 20000 * 8  # x, q, p0 are not fill values
     assert not out.exists()
-    _no_temporaries(tmp_path)
+    no_temporaries(tmp_path)
 
 
 def test_a_sweep_without_room_keeps_the_finished_points(tmp_path, monkeypatch, capsys):
@@ -131,7 +127,7 @@ def test_a_sweep_without_room_keeps_the_finished_points(tmp_path, monkeypatch, c
     assert main([*SWEEP12, "--out", str(out), "--force"]) == 1
     _refusal(capsys.readouterr().err, out)
     assert out.read_bytes() == before
-    _no_temporaries(tmp_path)
+    no_temporaries(tmp_path)
 
 
 def test_the_line_names_estimate_and_free_space(tmp_path, monkeypatch):

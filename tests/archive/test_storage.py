@@ -16,7 +16,7 @@ import uuid
 
 import numpy as np
 import pytest
-from support import MAP_FLAGS, cli
+from support import MAP_FLAGS, cli, no_temporaries
 
 from warpratchet import Ensemble, MapParams, open_archive, summarize
 from warpratchet.archive import ArchiveSink, _format, _recovery, _rows
@@ -34,11 +34,6 @@ def _one_line_disk_error(proc_or_err: str, path) -> None:
     lines = proc_or_err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("warpratchet: error: cannot "), proc_or_err
     assert str(path) in lines[0] and "disk full" in lines[0], lines[0]
-
-
-def _no_temporaries(folder) -> None:
-    left = [p for p in os.listdir(folder) if p.endswith(".tmp")]
-    assert left == [], left
 
 
 # -- a real full disk ---------------------------------------------------------------------------
@@ -84,7 +79,7 @@ def test_disk_full_mid_run_then_resumed(small_disk):
     assert proc.returncode == 1, proc.stderr
     _one_line_disk_error(proc.stderr, out)
     assert "keeps its checkpoint at step" in proc.stderr and "run the same command again" in proc.stderr
-    _no_temporaries(mnt)
+    no_temporaries(mnt)
     with open_archive(out) as arc:
         assert arc.checkpoint_step >= 200 and arc.rows >= 2
     (mnt / "filler").unlink()  # space again: the same command resumes it
@@ -104,7 +99,7 @@ def test_disk_full_at_creation(small_disk):
     assert proc.returncode == 1, proc.stderr
     _one_line_disk_error(proc.stderr, out)
     assert not out.exists()
-    _no_temporaries(mnt)
+    no_temporaries(mnt)
 
 
 def test_disk_full_during_resume_leaves_the_archive(small_disk):
@@ -117,7 +112,7 @@ def test_disk_full_during_resume_leaves_the_archive(small_disk):
     assert proc.returncode == 1, proc.stderr
     _one_line_disk_error(proc.stderr, out)
     assert out.read_bytes() == before
-    _no_temporaries(mnt)
+    no_temporaries(mnt)
 
 
 def test_disk_full_during_a_sweep(small_disk):
@@ -128,7 +123,7 @@ def test_disk_full_during_a_sweep(small_disk):
     assert proc.returncode == 1, proc.stderr
     _one_line_disk_error(proc.stderr, out)
     assert not out.exists()
-    _no_temporaries(mnt)
+    no_temporaries(mnt)
     (mnt / "filler").unlink()
     assert cli(*SWEEP, "--out", str(out)).returncode == 0
     assert len(read_sweep(out)) == 3
@@ -172,7 +167,7 @@ def test_injected_enospc_in_a_run(tmp_path, monkeypatch, capsys, where, target, 
     monkeypatch.setattr(target, name, failing)
     assert main(argv) == 1
     _one_line_disk_error(capsys.readouterr().err, out)
-    _no_temporaries(tmp_path)
+    no_temporaries(tmp_path)
     monkeypatch.undo()
     if where == "creation":
         assert not out.exists()
@@ -194,7 +189,7 @@ def test_injected_enospc_while_resuming(tmp_path, monkeypatch, capsys):
     assert main(["resume", str(out), "--steps", "600", "--quiet"]) == 1
     _one_line_disk_error(capsys.readouterr().err, out)
     assert out.read_bytes() == before
-    _no_temporaries(tmp_path)
+    no_temporaries(tmp_path)
 
 
 def test_injected_enospc_in_a_sweep(tmp_path, monkeypatch, capsys):
@@ -213,7 +208,7 @@ def test_injected_enospc_in_a_sweep(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     _one_line_disk_error(err, out)
     assert "run the same command again" in err
-    _no_temporaries(tmp_path)
+    no_temporaries(tmp_path)
     monkeypatch.undo()
     assert len(read_sweep(out)) == 1  # the finished point is kept
     assert main([*SWEEP, "--out", str(out)]) == 0

@@ -11,13 +11,13 @@ import signal
 import time
 
 import numpy as np
-from support import MAP_FLAGS, cli, launch, same_history
+from support import MAP_FLAGS, archive_rows, cli, launch, same_history
 from support import documented_names as _documented_names
 from support import documented_optional as _documented_optional
 from support import written_names as _written_names
 
 from warpratchet import MapParams
-from warpratchet.archive import Archive, ArchiveError, open_archive, verify_archive
+from warpratchet.archive import open_archive, verify_archive
 from warpratchet.transport import CARRY_FIELDS, TransportEnsemble
 
 POINTS, SEED, STEPS = 1500, 7, 60_000
@@ -44,19 +44,11 @@ def test_json_has_the_histograms_mu_and_tail_exponents():
     assert "mu          =" in text and "flights +" in text and "returns" in text
 
 
-def _rows(path) -> int:
-    try:
-        with Archive(path, locking=False) as arc:
-            return arc.rows
-    except (FileNotFoundError, ArchiveError, OSError):
-        return 0
-
-
 def test_a_killed_run_resumed_equals_an_uninterrupted_one_bit_for_bit(tmp_path):
     whole, killed = str(tmp_path / "whole.h5"), str(tmp_path / "killed.h5")
     proc = launch(*RUN, "--out", killed)
     start = time.monotonic()
-    while proc.poll() is None and _rows(killed) < 40 and time.monotonic() - start < 900:
+    while proc.poll() is None and archive_rows(killed) < 40 and time.monotonic() - start < 900:
         time.sleep(0.005)
     proc.send_signal(signal.SIGKILL)
     proc.communicate(timeout=900)

@@ -18,30 +18,22 @@ import time
 
 import numpy as np
 import pytest
-from support import MAP_FLAGS, cli, launch
+from support import MAP_FLAGS, archive_rows, cli, launch
 
 from warpratchet import Ensemble, MapParams, Observer, summarize
 from warpratchet._files import writer_marked
-from warpratchet.archive import Archive, ArchiveError, open_archive
+from warpratchet.archive import ArchiveError, open_archive
 
 POINTS, SEED, STEPS = 2000, 7, 200_000  # 2000 chunks: seconds, never done before the interrupt
 RUN = ["run", *MAP_FLAGS, "--points", str(POINTS), "--seed", str(SEED), "--steps", str(STEPS)]
 RUN += ["--chunk-steps", "100", "--checkpoint-every", "500", "--quiet", "--json"]
 
 
-def _rows(path) -> int:
-    try:
-        with Archive(path, locking=False) as arc:
-            return arc.rows
-    except (FileNotFoundError, ArchiveError):
-        return 0
-
-
 def test_the_same_command_again_resumes(tmp_path):
     out = str(tmp_path / "run.h5")
     proc = launch(*RUN, "--out", out)
     start = time.monotonic()
-    while proc.poll() is None and _rows(out) < 30 and time.monotonic() - start < 900:
+    while proc.poll() is None and archive_rows(out) < 30 and time.monotonic() - start < 900:
         time.sleep(0.01)
     assert proc.poll() is None, "the run ended before it could be interrupted"
     proc.send_signal(signal.SIGINT)

@@ -1,0 +1,91 @@
+"""Starting the command line and the benchmarks, and reading their refusals."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+#: The CLI flags of the map most tests use, MapParams(3.0, 0.1, 0.01) (domain LR, Eq. Aa).
+MAP_FLAGS = ("--K", "3", "--b1", "0.1", "--b2", "0.01")
+
+
+def run_argv(*flags: str) -> list[str]:
+    """``warpratchet run`` of the map :data:`MAP_FLAGS` with more ``flags``, as an argv list."""
+    return ["run", *MAP_FLAGS, *flags]
+
+
+def cli(
+    *args: str, timeout: float = 900, module: str = "warpratchet.cli", **options
+) -> subprocess.CompletedProcess:
+    """``warpratchet ARGS`` in a fresh process (``python -m warpratchet.cli``; another command line
+    with ``module``, e.g. ``viz``), run to its end, output captured as text; ``options`` (``env``,
+    ``cwd``) go to :func:`subprocess.run`."""
+    return subprocess.run(
+        [sys.executable, "-m", module, *args], capture_output=True, text=True, timeout=timeout, **options
+    )
+
+
+def launch(*args: str, module: str = "warpratchet.cli", text: bool = True, **options) -> subprocess.Popen:
+    """``warpratchet ARGS`` started in a fresh process (as :func:`cli`) and left running, its stdout
+    and stderr piped (as text unless ``text`` is false): for tests that interrupt, kill or read it."""
+    return subprocess.Popen(
+        [sys.executable, "-m", module, *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=text,
+        **options,
+    )
+
+
+def benchmark(name: str, *args: str, timeout: float = 900) -> subprocess.CompletedProcess:
+    """``benchmarks/NAME ARGS`` in a fresh process, run to its end, output captured as text."""
+    script = Path(__file__).resolve().parents[2] / "benchmarks" / name
+    return subprocess.run(
+        [sys.executable, str(script), *args], capture_output=True, text=True, timeout=timeout
+    )
+
+
+def quick_benchmark(name: str, timeout: float = 900) -> dict:
+    """``benchmarks/NAME --quick --json`` in a fresh process: it must exit 0; its JSON report."""
+    import json
+
+    proc = benchmark(name, "--quick", "--json", timeout=timeout)
+    assert proc.returncode == 0, proc.stderr
+    return json.loads(proc.stdout)
+
+
+def assert_one_line_error(proc: subprocess.CompletedProcess) -> None:
+    """Bad input: exit 2, one line ``warpratchet: error: ...`` on stderr, no traceback."""
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("warpratchet: error:"), proc.stderr
+
+
+#: Longest usage line before an error line (the CLI shortens a longer one to ``usage: PROG [options]
+#: (PROG --help lists them)``).
+USAGE_WIDTH = 100
+
+
+def error_line(stderr: str) -> str:
+    """The one error line of a refusal, ``PROG: error: ...``: alone, or after one short usage line
+    of the same ``PROG`` (a flag refused while parsing, argparse's convention); anything else fails."""
+    lines = stderr.strip().splitlines()
+    assert len(lines) in (1, 2) and ": error: " in lines[-1], stderr
+    if len(lines) == 2:
+        prog, usage = lines[1].split(": error: ")[0], lines[0]
+        assert usage.startswith(f"usage: {prog} ") and "error:" not in usage, stderr
+        assert len(usage) <= USAGE_WIDTH, stderr
+    return lines[-1]
+
+
+def refused(capsys, argv: list[str]) -> str:
+    """``warpratchet ARGV`` in this process must refuse: exit 2 and one error line on stderr (returned),
+    after a short usage line if a flag was refused while parsing."""
+    from warpratchet.cli import main
+
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    return error_line(err) + "\n"
