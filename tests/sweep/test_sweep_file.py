@@ -126,27 +126,44 @@ def test_force_replaces_atomically(finished, tmp_path, monkeypatch):
 
 
 def test_read_sweep_while_a_sweep_writes(tmp_path):
-    """Reads of a live sweep file: every read gives complete rows, never an error (SWMR)."""
+    """Reads of a live sweep file: every read gives complete rows, never an error (SWMR).
+
+    The writer waits after each row until the reader has seen it (a marker file per row count),
+    so the reads interleave with every one of the 12 writes however the machine schedules them.
+    """
     path = tmp_path / "live.h5"
     script = textwrap.dedent(
         f"""
-        from warpratchet.sweep import SweepSpec, maximal_path, run_sweep
+        import os, time
+        from warpratchet.sweep import SweepSpec, _file, maximal_path, run_sweep
+        written = 0
+        real_append = _file.SweepFile.append
+        def append(self, row):
+            global written
+            real_append(self, row)
+            written += 1
+            while not os.path.exists({str(path)!r} + f".seen{{written}}"):  # the reader's turn
+                time.sleep(0.005)
+        _file.SweepFile.append = append
         run_sweep(maximal_path([0.01 + 0.005 * i for i in range(12)]), SweepSpec(points=300, steps=2000),
                   out={str(path)!r}, progress=False)
         """
     )
     proc = subprocess.Popen([sys.executable, "-c", script], stderr=subprocess.PIPE, text=True)
-    reads, seen = 0, set()
+    seen = set()
     try:
         while proc.poll() is None:
             if path.exists():
                 rows = read_sweep(path)
-                seen.add(len(rows))
                 assert all(len(row) == len(ROW_FIELDS) == 25 and row["steps"] == 2000 for row in rows)
-                reads += 1
+                seen.add(len(rows))
+                (tmp_path / f"live.h5.seen{len(rows)}").touch()
             time.sleep(0.002)
+    except BaseException:
+        proc.kill()  # the writer would wait for this reader's next marker
+        raise
     finally:
         _, err = proc.communicate(timeout=900)
     assert proc.returncode == 0, err
     assert len(read_sweep(path)) == 12
-    assert reads > 10 and len(seen) > 2, (reads, seen)
+    assert set(range(1, 13)) <= seen, seen
