@@ -223,7 +223,7 @@ def test_two_threads_on_one_scratch_are_refused_not_miscounted():
     state, x = _start(p, n=20000)
     carry = twin.initial_carry(p, x, 0)
     scratch = wp.zeros(SCRATCH_BYTES, dtype=wp.uint8)
-    start = threading.Barrier(2)
+    start = threading.Barrier(2, timeout=900)  # a thread that never comes fails the test
     errors: list[str] = []
 
     def launch() -> None:
@@ -231,9 +231,10 @@ def test_two_threads_on_one_scratch_are_refused_not_miscounted():
         extra = [wp.array(carry[k], dtype=wp.int64) for k in CARRY_FIELDS]
         start.wait()
         try:
-            # ~0.1 s each: on any machine the two overlap (two cores, or the scheduler's slices)
+            # 8 x 10^8 point-steps each: long enough that the two overlap on two cores and, through
+            # the scheduler's time slices, on one busy core too
             advance_map_transport.launch(
-                "cpu", arrays, [*extra, wp.zeros(3 * BINS, dtype=wp.int64)], 0, 4000, p, scratch=scratch
+                "cpu", arrays, [*extra, wp.zeros(3 * BINS, dtype=wp.int64)], 0, 40_000, p, scratch=scratch
             )
         except RuntimeError as error:
             errors.append(str(error))

@@ -200,7 +200,7 @@ class HoldsOnce(Observer):
             return  # another shard is the one held
         distributed.Variable("i28-pid").set(os.getpid())
         distributed.Event("i28-reached").set()
-        distributed.Event("i28-go").wait()
+        distributed.Event("i28-go").wait(timeout=900)  # the test kills this worker before
 
 
 def test_a_worker_killed_mid_run_is_retried_from_its_checkpoint_with_the_result_unchanged(
