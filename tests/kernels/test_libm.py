@@ -10,6 +10,7 @@ must hold.
 """
 
 import platform
+import re
 
 import numpy as np
 import numpy._core._multiarray_umath as umath
@@ -18,6 +19,7 @@ import pytest
 from warpratchet.kernels import _libm
 from warpratchet.kernels._libm import (
     GLIBC_FTLE_CPP,
+    LOG_HARD_CASES,
     agrees,
     ftle_like_numpy,
     gate_sample,
@@ -179,26 +181,46 @@ def test_the_gate_is_cached_and_deterministic():
     assert first[0].size > 100_000
 
 
-# One transcription error each, of the kinds a port can make: a product left unfused in each log
-# path, and hypot without its correction step.
+def _unfused(name: str) -> str:
+    """The transcription with the FMA that defines ``name`` as a product, rounded, then a sum."""
+    fma = re.search(rf"const double {name} = __builtin_fma\(([^,]+), ([^,]+), ([^)]+)\);", GLIBC_FTLE_CPP)
+    assert fma is not None, name
+    a, b, c = fma.groups()
+    product = f"const double {name}_product = {a} * {b};\n    const double {name} = {name}_product + {c};"
+    return GLIBC_FTLE_CPP.replace(fma.group(0), product)
+
+
+# One transcription error each, of the kinds a port can make: each FMA of log that changes a
+# result left unfused (LOG_HARD_CASES has arguments for each), and hypot without its correction.
 PERTURBED = {
-    "near-1 log without its last FMA": (
-        "const double near_y = __builtin_fma(p1to10, r3, near_lo);",
-        "const double near_y_p = p1to10 * r3;\n    const double near_y = near_y_p + near_lo;",
+    "table log: r = z/c - 1": lambda: _unfused("rt"),
+    "near-1 log: B1 + r B2": lambda: _unfused("p12"),
+    "near-1 log: (B1 + r B2) + r^2 B3": lambda: _unfused("p123"),
+    "near-1 log: r^3 P + lo": lambda: _unfused("near_y"),
+    "near-1 log: P = Q r^3 + (B1 + r B2 + r^2 B3)": lambda: _unfused("p1to10"),
+    "table log: r^3 q + lo": lambda: _unfused("y"),
+    "hypot as a plain sqrt": lambda: GLIBC_FTLE_CPP.replace(
+        "const double kernel = h - correction;", "const double kernel = h;"
     ),
-    "table log with r = z/c - 1 unfused": (
-        "const double rt = __builtin_fma(z, invc, -1.0);",
-        "const double rt_p = z * invc;\n    const double rt = rt_p - 1.0;",
-    ),
-    "hypot as a plain sqrt": ("const double kernel = h - correction;", "const double kernel = h;"),
 }
 
 
 @pytest.mark.parametrize("perturbation", list(PERTURBED))
 def test_the_gate_detects_a_perturbed_transcription(perturbation):
-    old, new = PERTURBED[perturbation]
-    assert old in GLIBC_FTLE_CPP
-    assert not agrees(GLIBC_FTLE_CPP.replace(old, new))
+    source = PERTURBED[perturbation]()
+    assert source != GLIBC_FTLE_CPP
+    assert not agrees(source)
+
+
+@needs_glibc
+def test_the_hard_cases_separate_each_fma():
+    """At each of LOG_HARD_CASES, NumPy's log is the transcription's and not that of the
+    transcription with the FMA the case was found for left unfused."""
+    x = np.array(LOG_HARD_CASES)
+    _check(*log_like_numpy(x), np.log(x), x)
+    for name in ("rt", "y", "p12", "p123", "near_y", "p1to10"):
+        got, _ = log_like_numpy(x, source=_unfused(name))
+        assert (got != np.log(x)).any(), name
 
 
 def test_ftle_like_numpy_keeps_the_shape():

@@ -21,19 +21,21 @@ x86-64 as NumPy's manylinux wheels call it on an x86-64 CPU with FMA and AVX2:
   coefficients are the library's own bits.
 
 Both are branch-free (every path computed, the result selected), so that a loop over points can
-be vectorised, the table lookup becoming a gather. Non-finite ``dx`` or ``dp`` are not
+be vectorised (clang does, the table lookup becoming per-lane loads). Non-finite ``dx`` or ``dp`` are not
 transcribed: ``glibc_ftle_point`` reports them (its result ``false``) for the caller to take
 NumPy's value instead; every other argument, ``log``'s zero, subnormal and infinite ones
 included, gives NumPy's bits.
 
-Another machine may call other functions: NumPy built with AVX-512 has its own vectorised
+Another machine may call other functions: NumPy on a CPU with AVX-512 has its own vectorised
 ``log``, an older glibc another ``hypot``, another C library other code again. There the
 transcription is merely close, so callers first ask :func:`matches_numpy`, which compares the
 kernel with NumPy bit for bit on a fixed sample chosen to separate the variants (both paths of
 ``log`` and the boundary between them, every table interval, ``hypot``'s two correction
 formulas, its shortcut and its scaled ranges), and fall back to NumPy where it answers ``False``.
 ``tests/kernels/test_libm.py`` checks the transcription on more than 10^7 arguments and that the
-gate's sample tells a transcription with one FMA fewer apart.
+gate's sample tells apart transcriptions with one FMA fewer (:data:`LOG_HARD_CASES`: most of
+``log``'s FMAs change no result a sample can find, and their placement rests on reading the
+library's machine code) or without ``hypot``'s correction.
 """
 
 import functools
@@ -45,6 +47,7 @@ from ._runtime import CPU_MODULE_OPTIONS, init_warp
 
 __all__ = [
     "GLIBC_FTLE_CPP",
+    "LOG_HARD_CASES",
     "LOG_TABLE",
     "ftle_like_numpy",
     "hypot_like_numpy",
@@ -487,13 +490,41 @@ def numpy_ftle(dx, dp, log_stretch, step: float) -> np.ndarray:
         return (log_stretch + np.log(np.hypot(dx, dp))) / step
 
 
+#: Arguments where ``log`` rounds differently if one of its FMAs is left unfused: ``r = z/c - 1``
+#: and the last ``r^3 q + lo`` of the table path; in the near-1 path ``B1 + r B2``, then
+#: ``+ r^2 B3``, the last Horner step and the final ``r^3 P + lo``. Found by comparing such variants
+#: with the transcription on 2.2 * 10^8 arguments, most in ``[0.6875, 1.375]``; of ``log``'s other
+#: FMAs, five
+#: give the same bits either way (their product is exact) and twelve changed no result there (the
+#: product is too small to move the final rounding), so a random sample cannot tell them apart.
+LOG_HARD_CASES = tuple(
+    float.fromhex(x)
+    for x in (
+        "0x1.643d3c6f0968bp-1",  # r = z/c - 1
+        "0x1.bfa54ebad6922p-1",
+        "0x1.2034112d79ccbp+0",  # r^3 q + lo (table path)
+        "0x1.e13219288ff3fp-1",  # B1 + r B2
+        "0x1.08987fc30f03bp+0",
+        "0x1.0fdb538af9a9dp+0",
+        "0x1.0e3f6e9017163p+0",  # (B1 + r B2) + r^2 B3
+        "0x1.0fac84f461246p+0",
+        "0x1.e466f6ddc762cp-1",  # r^3 P + lo
+        "0x1.0ffc3d1f47110p+0",
+        "0x1.077aab2423e21p+0",
+        "0x1.e315df54bf109p-1",  # (B4 + ...) r^3 + (B1 + r B2 + r^2 B3)
+        "0x1.0f8fa7c97bac0p+0",
+    )
+)
+
+
 def gate_sample(seed: int = 2718) -> tuple[np.ndarray, np.ndarray]:
     """The tangents :func:`matches_numpy` compares on, ``dx, dp``.
 
     Norms near 1 (both of ``log``'s paths, and the edges between them), over ``[0.5, 2]`` (every
     table interval, ``k = -1, 0, 1``) and log-uniform over the whole normal range into the
     subnormals; ratios ``|dp/dx|`` across ``hypot``'s two corrections (they meet at
-    ``1/sqrt 3``), around its shortcut (``2^-54``) and zero; both signs and both orders.
+    ``1/sqrt 3``), around its shortcut (``2^-54``) and zero; both signs and both orders; and
+    :data:`LOG_HARD_CASES` as ``(x, 0)``.
     """
     rng = np.random.default_rng(seed)
     norm = np.concatenate(
@@ -517,7 +548,10 @@ def gate_sample(seed: int = 2718) -> tuple[np.ndarray, np.ndarray]:
     big, small = norm * np.cos(angle), norm * np.sin(angle)
     swap = rng.random(n) < 0.5
     signs = rng.choice([-1.0, 1.0], (2, n))
-    return np.where(swap, small, big) * signs[0], np.where(swap, big, small) * signs[1]
+    hard = np.array(LOG_HARD_CASES)
+    dx = np.concatenate([np.where(swap, small, big) * signs[0], hard])
+    dp = np.concatenate([np.where(swap, big, small) * signs[1], np.zeros_like(hard)])
+    return dx, dp
 
 
 def _same_bits(got: np.ndarray, ok: np.ndarray, want: np.ndarray) -> bool:
