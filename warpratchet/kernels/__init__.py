@@ -13,6 +13,8 @@ the ensemble layer shards points over one Python thread per core.
   (MEGNO, FLI; its accumulators :data:`INDICATOR_FIELDS`) and ``advance_map_transport`` (return
   times and flights);
 * :mod:`._logarithm`: ``fdlog``, the indicators' logarithm, the same bits on every body;
+* :mod:`._libm`: the C library's ``hypot`` and ``log`` as NumPy calls them, for kernels that must
+  give NumPy's bits (the history rows' FTLE), and the gate that says whether they do here;
 * :mod:`._runtime`: Warp start-up and the compiler options.
 
 The CPU body is built for one vector instruction set (:data:`._runtime.CPU_ISA`: AVX-512 where the
