@@ -43,7 +43,7 @@ import functools
 import numpy as np
 import warp as wp
 
-from ._runtime import CPU_MODULE_OPTIONS, init_warp
+from ._runtime import CPU_MODULE_OPTIONS, check_cpu_isa_runs, init_warp
 
 __all__ = [
     "GLIBC_FTLE_CPP",
@@ -433,6 +433,7 @@ for (long long i = first; i < last; i++) {{
 def _run(quantity: int, a, b, c, step: float, source: str) -> tuple[np.ndarray, np.ndarray]:
     """The array kernel of ``source`` on ``a, b, c`` (broadcast together), on the CPU."""
     init_warp()
+    check_cpu_isa_runs()
     arrays = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (a, b, c)))
     shape = arrays[0].shape
     a, b, c = (np.ascontiguousarray(x.reshape(-1)) for x in arrays)
