@@ -190,6 +190,7 @@ LOG_TABLE = tuple(
         ("0x1.756cadbd6130cp-1", "0x1.432eee32fe000p-2"),
     )
 )
+
 #: ``log``'s ``ln 2`` split (``Ln2hi`` with 11 trailing zero bits, so ``k Ln2hi`` is exact) and its
 #: polynomials: ``LOG_A`` for the table path (``A[0..4]``), ``LOG_B`` near 1 (``B[0..10]``).
 LOG_LN2 = (float.fromhex("0x1.62e42fefa3800p-1"), float.fromhex("0x1.ef35793c76730p-45"))
