@@ -173,6 +173,7 @@ class Ensemble:
         }
         self.points = points
         self._summaries: dict[tuple, Summary] = {}  # (step, threshold, threshold_rule): summary at this step
+        self._row_buffers: dict[str, np.ndarray] = {}  # the summaries' arrays, kept for the next row
         self._variance: tuple | None = None  # (step, variance of p_n - p_0) of the last summary
 
     @classmethod
@@ -435,15 +436,23 @@ class Ensemble:
             return None
         if threshold is None:
             threshold = lyapunov_threshold(self.step, threshold_rule)
-        args = (self.views(), self.step, threshold, ftle)
+        views = self.views()
+        args = (views, self.step, threshold, ftle)
+        # the per-point pass and the sums in kernels, NumPy's bits (the FTLE in the pass where its
+        # functions are NumPy's here: kernels.RowPass)
+        row_pass = None
+        if ftle is not None or kernels.row_pass_available():
+            row_pass = kernels.RowPass(views, ftle, self._row_buffers)
+        options = {"leaf_pass": row_pass, "leaf_sums": kernels.leaf_sums, "buffers": self._row_buffers}
         if self.threads < 2 or self.points < 4 * TREE_LEAF:  # a few leaves: not worth the threads
-            done = summarize_with_variance(*args)
+            done = summarize_with_variance(*args, **options)
         elif self.run_pool is not None:
-            done = summarize_with_variance(*args, pool=self.run_pool, batches=4 * self.threads)
+            done = summarize_with_variance(*args, pool=self.run_pool, batches=4 * self.threads, **options)
         else:
             with ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet-rows") as pool:
-                done = summarize_with_variance(*args, pool=pool, batches=4 * self.threads)
+                done = summarize_with_variance(*args, pool=pool, batches=4 * self.threads, **options)
         if done is None:
+            self._row_buffers.clear()  # summarize needs the memory (SUMMARY_BYTES_PER_POINT)
             return None
         self._variance = (self.step, done[1])
         return done[0]

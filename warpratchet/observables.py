@@ -6,11 +6,10 @@ work on archived checkpoints as well as on live ensembles).
 
 from __future__ import annotations
 
-import bisect
-import itertools
 import math
+import threading
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -394,25 +393,19 @@ def tree_total(tree: tuple, sums: Mapping[tuple[int, int], np.float64]) -> np.fl
     return tree_total(tree[0], sums) + tree_total(tree[1], sums)
 
 
-class _Joined:
-    """The concatenation of arrays, read in ranges without concatenating them all."""
+def _buffer(buffers: dict, name: str, size: int) -> np.ndarray:
+    """``size`` float64 values of ``buffers[name]``, which grows to hold them."""
+    kept = buffers.get(name)
+    if kept is None or kept.size < size:
+        kept = buffers[name] = np.empty(size)
+    return kept[:size]
 
-    def __init__(self, parts: list[np.ndarray]) -> None:
-        self.parts = parts
-        self.starts = list(itertools.accumulate((p.size for p in parts), initial=0))
-        self.size = self.starts[-1]
 
-    def take(self, lo: int, hi: int) -> np.ndarray:
-        first = bisect.bisect_right(self.starts, lo) - 1
-        pieces = []
-        while lo < hi:
-            part, start = self.parts[first], self.starts[first]
-            end = min(hi, start + part.size)
-            pieces.append(part[lo - start : end - start])
-            lo, first = end, first + 1
-        if len(pieces) == 1:
-            return pieces[0]
-        return np.concatenate(pieces) if pieces else np.empty(0)
+def _contiguous(parts: list[np.ndarray], buffers: dict, name: str) -> np.ndarray:
+    """The concatenation of ``parts``: the one part itself, else in ``buffers[name]``."""
+    if len(parts) == 1:
+        return parts[0]
+    return np.concatenate(parts, out=_buffer(buffers, name, sum(p.size for p in parts)))
 
 
 def _batched(pool: Any, jobs: list, batches: int) -> list:
@@ -437,6 +430,9 @@ def summarize_with_variance(
     *,
     pool: Any = None,
     batches: int = 1,
+    leaf_pass: Callable | None = None,
+    leaf_sums: Callable | None = None,
+    buffers: dict | None = None,
 ) -> tuple[Summary, float] | None:
     """:func:`summarize` of at most :data:`SUMMARY_CHUNK` points and the variance (ddof 1) of their
     :func:`momentum_gain` (a history row's ``var_dp_all``), bit for bit, in fewer passes and on
@@ -449,6 +445,13 @@ def summarize_with_variance(
     many pieces each pass is cut into for the pool. ``threshold``: the FTLE threshold itself (a
     rule's is :func:`lyapunov_threshold`). Returns None where a value is not finite
     (:func:`summarize` says which, in its error) or the state is larger than one chunk.
+
+    The work may be done elsewhere, to the same bits: ``leaf_pass``, the per-point values of a
+    group of leaves (:class:`warpratchet.kernels.RowPass`'s contract; a group it returns None for
+    is computed here), and ``leaf_sums``, each leaf's ``np.add.reduce`` of the values or of their
+    squared or absolute deviations from a value (:func:`warpratchet.kernels.leaf_sums`).
+    ``buffers``: a dict the caller keeps from one call to the next, where the arrays are kept for
+    reuse (fresh pages cost more than the arithmetic on them).
     """
     step = check_count("step", step, 1)
     threshold = check_real("threshold", threshold, 0.0)
@@ -456,18 +459,27 @@ def summarize_with_variance(
     if n > SUMMARY_CHUNK or (ftle is not None and np.shape(ftle) != (n,)):
         return None
     x = {name: state[name] for name in ("winding", "q", "p0", "dx", "dp", "log_stretch")}
-    gain = np.empty(n)
+    buffers = {} if buffers is None else buffers
+    gain = _buffer(buffers, "gain", n)
     low, high = threshold / AMBIGUITY_FACTOR, threshold * AMBIGUITY_FACTOR
     tree = pairwise_tree(0, n)
     leaves = tree_leaves(tree)
 
     def first_pass(group: list[tuple[int, int]]) -> tuple:
+        done = None if leaf_pass is None else leaf_pass(group, gain, step, threshold, low, high)
+        if done is None:
+            done = numpy_pass(group)
+        if leaf_sums is not None:
+            return (*done, dict(zip(group, leaf_sums(gain, group), strict=True)))
+        return (*done, {(lo, hi): np.add.reduce(gain[lo:hi]) for lo, hi in group})
+
+    def numpy_pass(group: list[tuple[int, int]]) -> tuple:
         size = sum(hi - lo for lo, hi in group)
         longest = max(hi - lo for lo, hi in group)
         chaotic_ftle, chaotic_acc, ambiguous_acc = np.empty(size), np.empty(size), np.empty(size)
         f_buf, a_buf = np.empty(longest), np.empty(longest)
         m = k = 0
-        least, finite, sums = math.inf, True, {}
+        least, finite = math.inf, True
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # non-finite: None
             for lo, hi in group:
                 f, a, g = f_buf[: hi - lo], a_buf[: hi - lo], gain[lo:hi]
@@ -482,7 +494,6 @@ def summarize_with_variance(
                 np.subtract(p0, np.floor(p0, out=a), out=a)
                 np.subtract(x["q"][lo:hi], a, out=a)
                 np.add(x["winding"][lo:hi], a, out=g)
-                sums[lo, hi] = np.add.reduce(g)
                 np.divide(g, step, out=a)
                 finite = finite and bool(np.isfinite(f).all() and np.isfinite(a).all())
                 mask = f > threshold
@@ -495,33 +506,48 @@ def summarize_with_variance(
                 values = a[(f > low) & (f < high)]
                 ambiguous_acc[k : k + values.size] = values
                 k += values.size
-        return chaotic_ftle[:m], chaotic_acc[:m], ambiguous_acc[:k], least, finite, sums
+        return [chaotic_ftle[:m]], [chaotic_acc[:m]], [ambiguous_acc[:k]], least, finite
 
     cuts = np.linspace(0, len(leaves), min(batches, len(leaves)) + 1).astype(int)
     groups = [leaves[a:b] for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a]
     firsts = _batched(pool, [lambda g=g: first_pass(g) for g in groups], batches)
     if not all(part[4] for part in firsts):
         return None
-    c_ftle, c_acc, a_acc = (_Joined([part[i] for part in firsts]) for i in range(3))
+    # one contiguous array each: the sums below read every value two or three times, in leaves
+    # that span the groups' parts
+    c_ftle, c_acc, a_acc = (
+        _contiguous([p for part in firsts for p in part[i]], buffers, name)
+        for i, name in enumerate(("chaotic_ftle", "chaotic_acc", "ambiguous_acc"))
+    )
     gain_sums = {leaf: total for part in firsts for leaf, total in part[5].items()}
     # coarser cuts of the same trees: the leaves' sums add up to the same totals
     m_tree, k_tree = pairwise_tree(0, c_ftle.size, SUM_LEAF), pairwise_tree(0, a_acc.size, SUM_LEAF)
     m_leaves, k_leaves = tree_leaves(m_tree), tree_leaves(k_tree)
 
-    def sums_of(values: _Joined, leaves: list, square_from: float | None = None, absolute_from=None):
-        def job(lo: int, hi: int) -> np.float64:
-            part = values.take(lo, hi)
-            if square_from is not None:
-                d = part - square_from
-                return np.add.reduce(np.multiply(d, d, out=d))
-            if absolute_from is not None:
-                return np.add.reduce(np.abs(part - absolute_from))
-            return np.add.reduce(part)
+    def sums_of(values: np.ndarray, leaves: list, term: str = "value", center: float = 0.0) -> list:
+        """Jobs that give the sums of ``values``' terms over ``leaves``, a list of sums each."""
+        if leaf_sums is not None:  # one call per batch of leaves
+            cuts = np.linspace(0, len(leaves), min(batches, len(leaves)) + 1).astype(int)
+            return [
+                lambda part=leaves[a:b]: list(leaf_sums(values, part, term, center))
+                for a, b in zip(cuts[:-1], cuts[1:], strict=True)
+                if b > a
+            ]
+
+        def job(lo: int, hi: int) -> list:
+            part = values[lo:hi]
+            if term == "value":
+                return [np.add.reduce(part)]
+            # one scratch array per thread: jobs of one thread run one after another
+            d = np.subtract(part, center, out=_buffer(buffers, f"scratch {threading.get_ident()}", hi - lo))
+            return [np.add.reduce(np.multiply(d, d, out=d) if term == "square" else np.abs(d, out=d))]
 
         return [lambda lo=lo, hi=hi: job(lo, hi) for lo, hi in leaves]
 
-    jobs = sums_of(c_acc, m_leaves) + sums_of(c_ftle, m_leaves)
-    done = _batched(pool, jobs, batches)
+    def run(jobs: list) -> list:
+        return [total for totals in _batched(pool, jobs, batches) for total in totals]
+
+    done = run(sums_of(c_acc, m_leaves) + sums_of(c_ftle, m_leaves))
     sum_a = tree_total(m_tree, dict(zip(m_leaves, done[: len(m_leaves)], strict=True)))
     sum_f = tree_total(m_tree, dict(zip(m_leaves, done[len(m_leaves) :], strict=True)))
     least = min(part[3] for part in firsts)
@@ -530,16 +556,14 @@ def summarize_with_variance(
     squares = needs_squares(first)
     jobs = []
     if squares:
-        jobs += sums_of(c_acc, m_leaves, square_from=a_mean) + sums_of(
-            c_ftle, m_leaves, square_from=ftle_mean
-        )
-        jobs += sums_of(a_acc, k_leaves, absolute_from=a_mean)
+        jobs += sums_of(c_acc, m_leaves, "square", a_mean) + sums_of(c_ftle, m_leaves, "square", ftle_mean)
+        jobs += sums_of(a_acc, k_leaves, "absolute", a_mean)
     if n >= 2:  # history's variance: the mean as a Python float, then the squared deviations
         mean = float(tree_total(tree, gain_sums)) / n
         tree = pairwise_tree(0, n, SUM_LEAF)
         leaves = tree_leaves(tree)
-        jobs += sums_of(_Joined([gain]), leaves, square_from=mean)
-    done = _batched(pool, jobs, batches)
+        jobs += sums_of(gain, leaves, "square", mean)
+    done = run(jobs)
     second = []
     if squares:
         parts = done[: len(m_leaves)], done[len(m_leaves) : 2 * len(m_leaves)]

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from warpratchet import observables
+from warpratchet import kernels, observables
 from warpratchet.ensemble import Ensemble
 from warpratchet.observables import (
     AMBIGUITY_FACTOR,
@@ -167,12 +167,40 @@ def test_the_summary_with_variance_on_threads_is_summarize_and_the_history_varia
     assert all(
         given[name] == value or _same_bits(given[name], value) for name, value in want.as_dict().items()
     )
+    # The per-point pass in one kernel, as an ensemble on the CPU runs it: the FTLE given, and
+    # computed in the kernel where its functions are NumPy's here; twice, the second time in the
+    # arrays the first one left.
+    buffers = {}
+    for known in [ftle, None] if kernels.row_pass_available() else [ftle]:
+        for _ in range(2):
+            with ThreadPoolExecutor(threads) as pool:
+                got, var = observables.summarize_with_variance(
+                    state,
+                    steps,
+                    threshold,
+                    known,
+                    pool=pool if threads > 1 else None,
+                    batches=4 * threads,
+                    leaf_pass=kernels.RowPass(state, known, buffers),
+                    leaf_sums=kernels.leaf_sums,
+                    buffers=buffers,
+                )
+            for name, value in want.as_dict().items():
+                assert got.as_dict()[name] == value or _same_bits(got.as_dict()[name], value), name
+            assert _same_bits(var, variance)
 
 
 def test_the_summary_with_variance_leaves_what_it_cannot_do_to_summarize():
     state = _state(300, 50, seed=1)
     state["dx"][7] = np.inf
     assert observables.summarize_with_variance(state, 50, lyapunov_threshold(50)) is None
+    ftle = lyapunov(state, 50)
+    for known in [ftle, None] if kernels.row_pass_available() else [ftle]:
+        row_pass = kernels.RowPass(state, known)
+        assert (
+            observables.summarize_with_variance(state, 50, lyapunov_threshold(50), known, leaf_pass=row_pass)
+            is None
+        )
     with pytest.raises(ValueError, match="non-finite FTLE"):
         summarize(state, 50)
     big = {name: np.zeros(observables.SUMMARY_CHUNK + 1) for name in state}

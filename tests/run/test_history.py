@@ -325,10 +325,19 @@ def test_a_runs_report_and_history_equal_those_of_summarize_and_the_reference_va
         "--points", "3000", "--steps", "2500", "--seed", "4", "--threads", threads, "--json", "--quiet"
     )
     import warpratchet.ensemble
+    import warpratchet.kernels
     import warpratchet.observables
 
     for module in (warpratchet.ensemble, warpratchet.observables):  # many leaves, on the threads
         monkeypatch.setattr(module, "TREE_LEAF", 128)
+    passes = []  # the rows' per-point pass runs in the kernel (its FTLE computed there, where NumPy's)
+
+    class RowPass(warpratchet.kernels.RowPass):
+        def __call__(self, *args):
+            passes.append(self.inputs.ftle.shape[0] == 0)
+            return super().__call__(*args)
+
+    monkeypatch.setattr(warpratchet.kernels, "RowPass", RowPass)
     reports = []
     for on_threads in (True, False):
         if not on_threads:  # the reference path: summarize, then history_row's own variance
@@ -339,6 +348,7 @@ def test_a_runs_report_and_history_equal_those_of_summarize_and_the_reference_va
             report.pop(timing)
         reports.append(report)
     assert reports[0] == reports[1] and len(reports[0]["history"]["step"]) == len(history_steps(0, 2500))
+    assert bool(passes) == warpratchet.kernels.row_pass_available() and all(passes)
 
 
 def test_one_pool_serves_a_runs_launches_and_its_rows_and_a_row_outside_a_run_has_its_own(monkeypatch):

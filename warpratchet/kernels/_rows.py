@@ -1,0 +1,377 @@
+"""``row_pass``: a history row's per-point work in one CPU kernel, bit for bit NumPy's.
+
+A row's summary (:func:`warpratchet.observables.summarize_with_variance`) needs, for every point,
+the FTLE ``(log_stretch + log(hypot(dx, dp))) / n`` of Eq. (lyap), the gain
+``p_n - p_0 = winding + (q - frac(p0))`` and ``A_n = (p_n - p_0)/n`` of Eq. (An), and then the
+chaotic points' FTLE and ``A_n`` and the ambiguous points' ``A_n``, each gathered in point order.
+In NumPy that is some twenty passes over the ensemble and three boolean gathers; here it is one
+pass over each group of the summary's leaves (a group's gathered values stay in the group's own
+stretch of the output, so groups run in any order, on any thread). Every value is formed by
+the same IEEE operations in the same order as NumPy's (no contraction: ``-ffp-contract=off``), so
+the row is the same to the bit; the sums stay NumPy's, in :mod:`warpratchet.observables`.
+
+The FTLE's ``hypot`` and ``log`` are the ones NumPy calls: on a CPU whose NumPy takes them from
+glibc, :mod:`._libm`'s transcriptions of glibc's functions, used only where
+:func:`._libm.matches_numpy` has found them equal to NumPy's on this machine; elsewhere (another
+C library, NumPy's own SIMD ``log``) the row's FTLE is NumPy's, computed before the pass. A point
+the transcription does not cover (a non-finite or extreme tangent) is reported, and its leaves
+are left to NumPy.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+import numpy as np
+import warp as wp
+
+from ._libm import GLIBC_FTLE_CPP, matches_numpy
+from ._runtime import CPU_MODULE_OPTIONS, init_warp
+
+__all__ = ["ROW_FIELDS", "SUM_TERMS", "RowPass", "leaf_sums", "row_pass_available"]
+
+#: The state fields a row reads (:data:`warpratchet.state.STATE_FIELDS` less ``x``).
+ROW_FIELDS = ("winding", "q", "p0", "dx", "dp", "log_stretch")
+
+#: A group's status bits: a value not finite (the summary is NumPy's, which says which), and a
+#: point whose FTLE the transcribed functions do not cover (the group is NumPy's).
+NOT_FINITE = 1
+NOT_COVERED = 2
+# Points per block of the pass (two blocks of values stay in L1).
+BLOCK = 256
+
+_MODULE = "warpratchet.kernels.rows"
+
+
+@wp.struct
+class RowInputs:
+    winding: wp.array(dtype=wp.int64)
+    q: wp.array(dtype=wp.float64)
+    p0: wp.array(dtype=wp.float64)
+    dx: wp.array(dtype=wp.float64)
+    dp: wp.array(dtype=wp.float64)
+    log_stretch: wp.array(dtype=wp.float64)
+    ftle: wp.array(dtype=wp.float64)  # empty: computed here
+
+
+@wp.struct
+class RowOutputs:
+    gain: wp.array(dtype=wp.float64)
+    chaotic_ftle: wp.array(dtype=wp.float64)
+    chaotic_acc: wp.array(dtype=wp.float64)
+    ambiguous_acc: wp.array(dtype=wp.float64)
+    chaotic_count: wp.array(dtype=wp.int64)
+    ambiguous_count: wp.array(dtype=wp.int64)
+    least: wp.array(dtype=wp.float64)
+    status: wp.array(dtype=wp.int32)
+
+
+# A group of points, a block at a time: first every point's values, in a loop without branches
+# that clang vectorises; then the gathers, where each value is written at the next free index of
+# the group's stretch whether it is kept or not (the index moves on only if it is): no branch on
+# the data, and the write never passes the point being read, so no group touches another's.
+_GROUP_CPU = (
+    GLIBC_FTLE_CPP
+    + f"""
+const wp::int64 lo = bounds.data[0];
+const wp::int64 hi = bounds.data[1];
+const bool given = inputs.ftle.shape[0] != 0;
+const wp::int64* winding = inputs.winding.data;
+const double* q = inputs.q.data;
+const double* p0 = inputs.p0.data;
+const double* dx = inputs.dx.data;
+const double* dp = inputs.dp.data;
+const double* log_stretch = inputs.log_stretch.data;
+double* gain = outputs.gain.data;
+double* chaotic_ftle = outputs.chaotic_ftle.data;
+double* chaotic_acc = outputs.chaotic_acc.data;
+double* ambiguous_acc = outputs.ambiguous_acc.data;
+wp::int64 m = lo;
+wp::int64 k = lo;
+double least = INFINITY;
+int status = 0;
+double f_block[{BLOCK}], a_block[{BLOCK}];
+unsigned char ok_block[{BLOCK}];
+for (wp::int64 first = lo; first < hi; first += {BLOCK}) {{
+    const int size = (int)(hi - first < {BLOCK} ? hi - first : {BLOCK});
+    int covered = 1;
+    if (given) {{
+        __builtin_memcpy(f_block, inputs.ftle.data + first, size * sizeof(double));
+    }} else {{
+        const double* dx_block = dx + first;
+        const double* dp_block = dp + first;
+        const double* log_stretch_block = log_stretch + first;
+        for (int j = 0; j < size; ++j) {{
+            double value;
+            const bool good = glibc_ftle_point(dx_block[j], dp_block[j], log_stretch_block[j], step, &value);
+            f_block[j] = value;
+            ok_block[j] = good;
+        }}
+        for (int j = 0; j < size; ++j) covered &= ok_block[j];
+    }}
+    if (!covered) status |= {NOT_COVERED};
+    int finite = 1;
+    for (int j = 0; j < size; ++j) {{
+        /* momentum_gain's operations, in its order; winding is exact as a double */
+        const wp::int64 i = first + j;
+        const double p = p0[i];
+        const double frac = p - __builtin_floor(p);
+        const double rest = q[i] - frac;
+        const double g = (double)winding[i] + rest;
+        gain[i] = g;
+        const double a = g / step;
+        a_block[j] = a;
+        /* finite: x - x is 0 for a finite x, NaN otherwise */
+        const double f = f_block[j];
+        finite &= ((f - f) == 0.0) & ((a - a) == 0.0);
+    }}
+    if (!finite) status |= {NOT_FINITE};
+    for (int j = 0; j < size; ++j) {{
+        const double f = f_block[j];
+        const double a = a_block[j];
+        const bool chaotic = f > threshold;
+        chaotic_ftle[m] = f;
+        chaotic_acc[m] = a;
+        m += chaotic ? 1 : 0;
+        least = (chaotic && f < least) ? f : least;
+        const bool ambiguous = (f > low) && (f < high);
+        ambiguous_acc[k] = a;
+        k += ambiguous ? 1 : 0;
+    }}
+}}
+outputs.chaotic_count.data[0] = m - lo;
+outputs.ambiguous_count.data[0] = k - lo;
+outputs.least.data[0] = least;
+outputs.status.data[0] = status;
+"""
+)
+
+
+@wp.func_native(_GROUP_CPU)
+def _group_cpu(
+    inputs: RowInputs,
+    outputs: RowOutputs,
+    bounds: wp.array(dtype=wp.int64),
+    step: wp.float64,
+    threshold: wp.float64,
+    low: wp.float64,
+    high: wp.float64,
+): ...
+
+
+def _row_kernel(
+    inputs: RowInputs,
+    outputs: RowOutputs,
+    bounds: wp.array(dtype=wp.int64),
+    step: wp.float64,
+    threshold: wp.float64,
+    low: wp.float64,
+    high: wp.float64,
+):
+    _group_cpu(inputs, outputs, bounds, step, threshold, low, high)
+
+
+wp.set_module_options(CPU_MODULE_OPTIONS, _MODULE)
+_row = wp.kernel(_row_kernel, name="row_pass", module=_MODULE)
+
+
+def _wrap(values: np.ndarray, dtype: Any) -> wp.array:
+    return wp.array(values, dtype=dtype, device="cpu", copy=False)
+
+
+# NumPy's ``np.add.reduce`` of a contiguous float64 array, operation by operation: the identity
+# 0.0 plus the pairwise sum of numpy/_core/src/umath/loops_utils.h.src (blocks of at most 128
+# values in 8 accumulators, longer stretches halved at a multiple of 8). ``mode`` 1 sums
+# ``(v - center)^2`` and 2 sums ``|v - center|``, each term rounded as NumPy's
+# ``subtract``/``multiply``/``absolute`` round it before the sum.
+_TERMS_CPU = {
+    "value": "v",
+    "square": "((v - center) * (v - center))",
+    "absolute": "__builtin_fabs(v - center)",
+}
+
+
+def _pairwise_source(term: str, expression: str) -> str:
+    # One function per term, so that the mode is no branch in the loops (which clang vectorises).
+    # ``(v - center) * (v - center)`` is one subtraction rounded, then its square: NumPy's order.
+    return f"""
+static double {term}(const double* a, wp::int64 n, double center) {{
+    if (n < 8) {{
+        double res = 0.0;
+        for (wp::int64 i = 0; i < n; ++i) {{ const double v = a[i]; res += {expression}; }}
+        return res;
+    }}
+    if (n <= 128) {{
+        double r[8];
+        for (int j = 0; j < 8; ++j) {{ const double v = a[j]; r[j] = {expression}; }}
+        wp::int64 i = 8;
+        for (; i < n - (n % 8); i += 8)
+            for (int j = 0; j < 8; ++j) {{ const double v = a[i + j]; r[j] += {expression}; }}
+        double res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for (; i < n; ++i) {{ const double v = a[i]; res += {expression}; }}
+        return res;
+    }}
+    wp::int64 n2 = n / 2;
+    n2 -= n2 % 8;
+    const double left = {term}(a, n2, center);
+    const double right = {term}(a + n2, n - n2, center);
+    return left + right;
+}}
+"""
+
+
+_PAIRWISE_CPU = (
+    "struct numpy_sum {\n"
+    + "".join(_pairwise_source(term, expression) for term, expression in _TERMS_CPU.items())
+    + "};\n"
+)
+
+
+@wp.func_native(
+    _PAIRWISE_CPU
+    + """
+const wp::int64 lo = bounds.data[leaf];
+const wp::int64 hi = bounds.data[leaf + 1];
+const double* a = values.data + lo;
+const double total = mode == 0 ? numpy_sum::value(a, hi - lo, center)
+                   : mode == 1 ? numpy_sum::square(a, hi - lo, center)
+                               : numpy_sum::absolute(a, hi - lo, center);
+sums.data[leaf] = 0.0 + total;
+"""
+)
+def _leaf_sum_cpu(
+    values: wp.array(dtype=wp.float64),
+    bounds: wp.array(dtype=wp.int64),
+    sums: wp.array(dtype=wp.float64),
+    leaf: int,
+    center: wp.float64,
+    mode: int,
+): ...
+
+
+def _leaf_sums_kernel(
+    values: wp.array(dtype=wp.float64),
+    bounds: wp.array(dtype=wp.int64),
+    sums: wp.array(dtype=wp.float64),
+    center: wp.float64,
+    mode: int,
+):
+    _leaf_sum_cpu(values, bounds, sums, wp.tid(), center, mode)
+
+
+_leaf_sums = wp.kernel(_leaf_sums_kernel, name="leaf_sums", module=_MODULE)
+
+#: The terms :func:`leaf_sums` adds up.
+SUM_TERMS = tuple(_TERMS_CPU)
+
+
+def leaf_sums(
+    values: np.ndarray, leaves: list[tuple[int, int]], term: str = "value", center: float = 0.0
+) -> np.ndarray:
+    """``np.add.reduce`` of each leaf ``values[lo:hi]`` (contiguous float64) of ``leaves``, bit for bit,
+    or of ``(values[lo:hi] - center)**2`` (``term="square"``) or ``abs(values[lo:hi] - center)``
+    (``"absolute"``) as NumPy's ``subtract``, ``multiply`` / ``absolute`` and ``add.reduce`` give
+    them, without the temporary arrays. Returns an array of the sums, shape ``(len(leaves),)``."""
+    values = np.ascontiguousarray(values, dtype=np.float64)
+    bounds = np.array([lo for lo, _ in leaves] + [leaves[-1][1]] if leaves else [0], dtype=np.int64)
+    if leaves and any(a[1] != b[0] for a, b in zip(leaves[:-1], leaves[1:], strict=True)):
+        raise ValueError("leaves must be consecutive stretches (lo, hi) of the values")
+    sums = np.empty(len(leaves))
+    if leaves:
+        init_warp()
+        args = [_wrap(values, wp.float64), _wrap(bounds, wp.int64), _wrap(sums, wp.float64)]
+        wp.launch(
+            _leaf_sums, dim=len(leaves), inputs=[*args, float(center), SUM_TERMS.index(term)], device="cpu"
+        )
+    return sums
+
+
+_available: bool | None = None
+_available_lock = threading.Lock()
+
+
+def row_pass_available() -> bool:
+    """Whether :class:`RowPass` computes the FTLE itself here (:func:`._libm.matches_numpy`); checked
+    once per process. Without it a row pass needs the FTLE given."""
+    global _available
+    with _available_lock:
+        if _available is None:
+            init_warp()
+            _available = bool(matches_numpy())
+        return _available
+
+
+class RowPass:
+    """The per-point pass of one history row over a state's arrays (module docstring).
+
+    Parameters
+    ----------
+    state : dict of ndarray, shape (points,) each
+        At least :data:`ROW_FIELDS`, contiguous host arrays (an ensemble's zero-copy views).
+    ftle : ndarray, shape (points,), optional
+        Every point's FTLE if known already; else computed here (needs :func:`row_pass_available`).
+    buffers : dict, optional
+        Where the pass's output arrays are kept for the next pass of this size (the caller's).
+
+    Calling it with a group of consecutive leaves ``[(lo, hi), ...]`` of the summary's tree, the
+    row's ``step`` (n >= 1), ``threshold`` and the ambiguity band ``(low, high)`` fills the group's
+    stretch of ``gain`` and returns, for the group, the chaotic points' FTLE and ``A_n`` and the
+    ambiguous points' ``A_n`` (each a list of one array, in point order), the least chaotic FTLE
+    (inf if none), and whether every value was finite; or None where a point's FTLE is not
+    covered (the caller computes that group itself). Groups may run at once on different threads.
+    """
+
+    def __init__(
+        self, state: dict[str, np.ndarray], ftle: np.ndarray | None = None, buffers: dict | None = None
+    ) -> None:
+        n = len(state["p0"])
+        self.points = n
+        self.inputs = RowInputs()
+        for name in ROW_FIELDS:
+            dtype = wp.int64 if name == "winding" else wp.float64
+            setattr(self.inputs, name, _wrap(np.ascontiguousarray(state[name]), dtype))
+        empty = np.empty(0) if ftle is None else np.ascontiguousarray(ftle, dtype=np.float64)
+        self.inputs.ftle = _wrap(empty, wp.float64)
+        buffers = {} if buffers is None else buffers
+        self.buffers = {}
+        for name in ("chaotic_ftle", "chaotic_acc", "ambiguous_acc"):
+            kept = buffers.get(f"row pass {name}")
+            if kept is None or kept.size != n:
+                kept = buffers[f"row pass {name}"] = np.empty(n)
+            self.buffers[name] = kept
+
+    def __call__(
+        self,
+        group: list[tuple[int, int]],
+        gain: np.ndarray,
+        step: int,
+        threshold: float,
+        low: float,
+        high: float,
+    ) -> tuple | None:
+        lo, hi = group[0][0], group[-1][1]
+        counts = np.zeros(2, dtype=np.int64)
+        least = np.empty(1)
+        status = np.zeros(1, dtype=np.int32)
+        outputs = RowOutputs()
+        outputs.gain = _wrap(gain, wp.float64)
+        for name, values in self.buffers.items():
+            setattr(outputs, name, _wrap(values, wp.float64))
+        outputs.chaotic_count = _wrap(counts[:1], wp.int64)
+        outputs.ambiguous_count = _wrap(counts[1:], wp.int64)
+        outputs.least = _wrap(least, wp.float64)
+        outputs.status = _wrap(status, wp.int32)
+        bounds = _wrap(np.array([lo, hi], dtype=np.int64), wp.int64)
+        args = [self.inputs, outputs, bounds, float(step), float(threshold), float(low), float(high)]
+        wp.launch(_row, dim=1, inputs=args, device="cpu")
+        if status[0] & NOT_COVERED:
+            return None
+        chaotic, ambiguous = (int(c) for c in counts)
+        return (
+            [self.buffers["chaotic_ftle"][lo : lo + chaotic]],
+            [self.buffers["chaotic_acc"][lo : lo + chaotic]],
+            [self.buffers["ambiguous_acc"][lo : lo + ambiguous]],
+            float(least[0]),
+            not status[0] & NOT_FINITE,
+        )
