@@ -6,6 +6,7 @@ work on archived checkpoints as well as on live ensembles).
 
 from __future__ import annotations
 
+import ctypes
 import math
 import threading
 import warnings
@@ -402,10 +403,25 @@ def _buffer(buffers: dict, name: str, size: int) -> np.ndarray:
 
 
 def _contiguous(parts: list[np.ndarray], buffers: dict, name: str) -> np.ndarray:
-    """The concatenation of ``parts``: the one part itself, else in ``buffers[name]``."""
+    """The concatenation of ``parts``: the one part itself; parts that lie in one array in order,
+    the first at its start (a kernel's groups), moved down in place; else in ``buffers[name]``."""
     if len(parts) == 1:
         return parts[0]
-    return np.concatenate(parts, out=_buffer(buffers, name, sum(p.size for p in parts)))
+    base, size = parts[0].base, sum(p.size for p in parts)
+    starts = [p.ctypes.data for p in parts]
+    if (
+        base is not None
+        and base.dtype == np.float64
+        and all(p.base is base and p.flags.c_contiguous for p in parts)
+        and starts[0] == base.ctypes.data
+        and all(a + p.nbytes <= b for a, b, p in zip(starts[:-1], starts[1:], parts[:-1], strict=True))
+    ):
+        end = starts[0] + parts[0].nbytes
+        for start, part in zip(starts[1:], parts[1:], strict=True):
+            ctypes.memmove(end, start, part.nbytes)  # may overlap: memmove, not memcpy
+            end += part.nbytes
+        return base[:size]
+    return np.concatenate(parts, out=_buffer(buffers, name, size))
 
 
 def _batched(pool: Any, jobs: list, batches: int) -> list:
@@ -447,9 +463,10 @@ def summarize_with_variance(
     (:func:`summarize` says which, in its error) or the state is larger than one chunk.
 
     The work may be done elsewhere, to the same bits: ``leaf_pass``, the per-point values of a
-    group of leaves (:class:`warpratchet.kernels.RowPass`'s contract; a group it returns None for
-    is computed here), and ``leaf_sums``, each leaf's ``np.add.reduce`` of the values or of their
-    squared or absolute deviations from a value (:func:`warpratchet.kernels.leaf_sums`).
+    group of leaves and its leaves' sums of the gains (:class:`warpratchet.kernels.RowPass`'s
+    contract; a group it returns None for is computed here), and ``leaf_sums``, each leaf's
+    ``np.add.reduce`` of the values or of their squared or absolute deviations from a value
+    (:func:`warpratchet.kernels.leaf_sums`).
     ``buffers``: a dict the caller keeps from one call to the next, where the arrays are kept for
     reuse (fresh pages cost more than the arithmetic on them).
     """
@@ -467,8 +484,9 @@ def summarize_with_variance(
 
     def first_pass(group: list[tuple[int, int]]) -> tuple:
         done = None if leaf_pass is None else leaf_pass(group, gain, step, threshold, low, high)
-        if done is None:
-            done = numpy_pass(group)
+        if done is not None:
+            return done
+        done = numpy_pass(group)
         if leaf_sums is not None:
             return (*done, dict(zip(group, leaf_sums(gain, group), strict=True)))
         return (*done, {(lo, hi): np.add.reduce(gain[lo:hi]) for lo, hi in group})

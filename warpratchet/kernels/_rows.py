@@ -65,119 +65,7 @@ class RowOutputs:
     ambiguous_count: wp.array(dtype=wp.int64)
     least: wp.array(dtype=wp.float64)
     status: wp.array(dtype=wp.int32)
-
-
-# A group of points, a block at a time: first every point's values, in a loop without branches
-# that clang vectorises; then the gathers, where each value is written at the next free index of
-# the group's stretch whether it is kept or not (the index moves on only if it is): no branch on
-# the data, and the write never passes the point being read, so no group touches another's.
-_GROUP_CPU = (
-    GLIBC_FTLE_CPP
-    + f"""
-const wp::int64 lo = bounds.data[0];
-const wp::int64 hi = bounds.data[1];
-const bool given = inputs.ftle.shape[0] != 0;
-const wp::int64* winding = inputs.winding.data;
-const double* q = inputs.q.data;
-const double* p0 = inputs.p0.data;
-const double* dx = inputs.dx.data;
-const double* dp = inputs.dp.data;
-const double* log_stretch = inputs.log_stretch.data;
-double* gain = outputs.gain.data;
-double* chaotic_ftle = outputs.chaotic_ftle.data;
-double* chaotic_acc = outputs.chaotic_acc.data;
-double* ambiguous_acc = outputs.ambiguous_acc.data;
-wp::int64 m = lo;
-wp::int64 k = lo;
-double least = INFINITY;
-int status = 0;
-double f_block[{BLOCK}], a_block[{BLOCK}];
-unsigned char ok_block[{BLOCK}];
-for (wp::int64 first = lo; first < hi; first += {BLOCK}) {{
-    const int size = (int)(hi - first < {BLOCK} ? hi - first : {BLOCK});
-    int covered = 1;
-    if (given) {{
-        __builtin_memcpy(f_block, inputs.ftle.data + first, size * sizeof(double));
-    }} else {{
-        const double* dx_block = dx + first;
-        const double* dp_block = dp + first;
-        const double* log_stretch_block = log_stretch + first;
-        for (int j = 0; j < size; ++j) {{
-            double value;
-            const bool good = glibc_ftle_point(dx_block[j], dp_block[j], log_stretch_block[j], step, &value);
-            f_block[j] = value;
-            ok_block[j] = good;
-        }}
-        for (int j = 0; j < size; ++j) covered &= ok_block[j];
-    }}
-    if (!covered) status |= {NOT_COVERED};
-    int finite = 1;
-    for (int j = 0; j < size; ++j) {{
-        /* momentum_gain's operations, in its order; winding is exact as a double */
-        const wp::int64 i = first + j;
-        const double p = p0[i];
-        const double frac = p - __builtin_floor(p);
-        const double rest = q[i] - frac;
-        const double g = (double)winding[i] + rest;
-        gain[i] = g;
-        const double a = g / step;
-        a_block[j] = a;
-        /* finite: x - x is 0 for a finite x, NaN otherwise */
-        const double f = f_block[j];
-        finite &= ((f - f) == 0.0) & ((a - a) == 0.0);
-    }}
-    if (!finite) status |= {NOT_FINITE};
-    for (int j = 0; j < size; ++j) {{
-        const double f = f_block[j];
-        const double a = a_block[j];
-        const bool chaotic = f > threshold;
-        chaotic_ftle[m] = f;
-        chaotic_acc[m] = a;
-        m += chaotic ? 1 : 0;
-        least = (chaotic && f < least) ? f : least;
-        const bool ambiguous = (f > low) && (f < high);
-        ambiguous_acc[k] = a;
-        k += ambiguous ? 1 : 0;
-    }}
-}}
-outputs.chaotic_count.data[0] = m - lo;
-outputs.ambiguous_count.data[0] = k - lo;
-outputs.least.data[0] = least;
-outputs.status.data[0] = status;
-"""
-)
-
-
-@wp.func_native(_GROUP_CPU)
-def _group_cpu(
-    inputs: RowInputs,
-    outputs: RowOutputs,
-    bounds: wp.array(dtype=wp.int64),
-    step: wp.float64,
-    threshold: wp.float64,
-    low: wp.float64,
-    high: wp.float64,
-): ...
-
-
-def _row_kernel(
-    inputs: RowInputs,
-    outputs: RowOutputs,
-    bounds: wp.array(dtype=wp.int64),
-    step: wp.float64,
-    threshold: wp.float64,
-    low: wp.float64,
-    high: wp.float64,
-):
-    _group_cpu(inputs, outputs, bounds, step, threshold, low, high)
-
-
-wp.set_module_options(CPU_MODULE_OPTIONS, _MODULE)
-_row = wp.kernel(_row_kernel, name="row_pass", module=_MODULE)
-
-
-def _wrap(values: np.ndarray, dtype: Any) -> wp.array:
-    return wp.array(values, dtype=dtype, device="cpu", copy=False)
+    gain_sums: wp.array(dtype=wp.float64)
 
 
 # NumPy's ``np.add.reduce`` of a contiguous float64 array, operation by operation: the identity
@@ -226,6 +114,126 @@ _PAIRWISE_CPU = (
     + "".join(_pairwise_source(term, expression) for term, expression in _TERMS_CPU.items())
     + "};\n"
 )
+
+
+# A group of points, a block at a time: first every point's values, in a loop without branches
+# that clang vectorises; then the gathers, where each value is written at the next free index of
+# the group's stretch whether it is kept or not (the index moves on only if it is): no branch on
+# the data, and the write never passes the point being read, so no group touches another's.
+_GROUP_CPU = (
+    GLIBC_FTLE_CPP
+    + _PAIRWISE_CPU
+    + f"""
+const int leaves = (int)(bounds.shape[0] - 1);
+const wp::int64 lo = bounds.data[0];
+const bool given = inputs.ftle.shape[0] != 0;
+const wp::int64* winding = inputs.winding.data;
+const double* q = inputs.q.data;
+const double* p0 = inputs.p0.data;
+const double* dx = inputs.dx.data;
+const double* dp = inputs.dp.data;
+const double* log_stretch = inputs.log_stretch.data;
+double* gain = outputs.gain.data;
+double* chaotic_ftle = outputs.chaotic_ftle.data;
+double* chaotic_acc = outputs.chaotic_acc.data;
+double* ambiguous_acc = outputs.ambiguous_acc.data;
+wp::int64 m = lo;
+wp::int64 k = lo;
+double least = INFINITY;
+int status = 0;
+double f_block[{BLOCK}], a_block[{BLOCK}];
+unsigned char ok_block[{BLOCK}];
+for (int leaf = 0; leaf < leaves; ++leaf) {{
+const wp::int64 hi = bounds.data[leaf + 1];
+for (wp::int64 first = bounds.data[leaf]; first < hi; first += {BLOCK}) {{
+    const int size = (int)(hi - first < {BLOCK} ? hi - first : {BLOCK});
+    int covered = 1;
+    if (given) {{
+        __builtin_memcpy(f_block, inputs.ftle.data + first, size * sizeof(double));
+    }} else {{
+        const double* dx_block = dx + first;
+        const double* dp_block = dp + first;
+        const double* log_stretch_block = log_stretch + first;
+        for (int j = 0; j < size; ++j) {{
+            double value;
+            const bool good = glibc_ftle_point(dx_block[j], dp_block[j], log_stretch_block[j], step, &value);
+            f_block[j] = value;
+            ok_block[j] = good;
+        }}
+        for (int j = 0; j < size; ++j) covered &= ok_block[j];
+    }}
+    if (!covered) status |= {NOT_COVERED};
+    int finite = 1;
+    for (int j = 0; j < size; ++j) {{
+        /* momentum_gain's operations, in its order; winding is exact as a double */
+        const wp::int64 i = first + j;
+        const double p = p0[i];
+        const double frac = p - __builtin_floor(p);
+        const double rest = q[i] - frac;
+        const double g = (double)winding[i] + rest;
+        gain[i] = g;
+        const double a = g / step;
+        a_block[j] = a;
+        /* finite: x - x is 0 for a finite x, NaN otherwise */
+        const double f = f_block[j];
+        finite &= ((f - f) == 0.0) & ((a - a) == 0.0);
+    }}
+    if (!finite) status |= {NOT_FINITE};
+    for (int j = 0; j < size; ++j) {{
+        const double f = f_block[j];
+        const double a = a_block[j];
+        const bool chaotic = f > threshold;
+        chaotic_ftle[m] = f;
+        chaotic_acc[m] = a;
+        m += chaotic ? 1 : 0;
+        least = (chaotic && f < least) ? f : least;
+        const bool ambiguous = (f > low) && (f < high);
+        ambiguous_acc[k] = a;
+        k += ambiguous ? 1 : 0;
+    }}
+}}
+/* the leaf's gains are still in cache: their sum, as np.add.reduce gives it */
+const wp::int64 leaf_lo = bounds.data[leaf];
+outputs.gain_sums.data[leaf] = 0.0 + numpy_sum::value(gain + leaf_lo, hi - leaf_lo, 0.0);
+}}
+outputs.chaotic_count.data[0] = m - lo;
+outputs.ambiguous_count.data[0] = k - lo;
+outputs.least.data[0] = least;
+outputs.status.data[0] = status;
+"""
+)
+
+
+@wp.func_native(_GROUP_CPU)
+def _group_cpu(
+    inputs: RowInputs,
+    outputs: RowOutputs,
+    bounds: wp.array(dtype=wp.int64),
+    step: wp.float64,
+    threshold: wp.float64,
+    low: wp.float64,
+    high: wp.float64,
+): ...
+
+
+def _row_kernel(
+    inputs: RowInputs,
+    outputs: RowOutputs,
+    bounds: wp.array(dtype=wp.int64),
+    step: wp.float64,
+    threshold: wp.float64,
+    low: wp.float64,
+    high: wp.float64,
+):
+    _group_cpu(inputs, outputs, bounds, step, threshold, low, high)
+
+
+wp.set_module_options(CPU_MODULE_OPTIONS, _MODULE)
+_row = wp.kernel(_row_kernel, name="row_pass", module=_MODULE)
+
+
+def _wrap(values: np.ndarray, dtype: Any) -> wp.array:
+    return wp.array(values, dtype=dtype, device="cpu", copy=False)
 
 
 @wp.func_native(
@@ -318,8 +326,9 @@ class RowPass:
     row's ``step`` (n >= 1), ``threshold`` and the ambiguity band ``(low, high)`` fills the group's
     stretch of ``gain`` and returns, for the group, the chaotic points' FTLE and ``A_n`` and the
     ambiguous points' ``A_n`` (each a list of one array, in point order), the least chaotic FTLE
-    (inf if none), and whether every value was finite; or None where a point's FTLE is not
-    covered (the caller computes that group itself). Groups may run at once on different threads.
+    (inf if none), whether every value was finite, and each leaf's ``np.add.reduce`` of its
+    gains (``leaf -> sum``); or None where a point's FTLE is not covered (the caller computes
+    that group itself). Groups may run at once on different threads.
     """
 
     def __init__(
@@ -362,7 +371,9 @@ class RowPass:
         outputs.ambiguous_count = _wrap(counts[1:], wp.int64)
         outputs.least = _wrap(least, wp.float64)
         outputs.status = _wrap(status, wp.int32)
-        bounds = _wrap(np.array([lo, hi], dtype=np.int64), wp.int64)
+        gain_sums = np.empty(len(group))
+        outputs.gain_sums = _wrap(gain_sums, wp.float64)
+        bounds = _wrap(np.array([lo for lo, _ in group] + [hi], dtype=np.int64), wp.int64)
         args = [self.inputs, outputs, bounds, float(step), float(threshold), float(low), float(high)]
         wp.launch(_row, dim=1, inputs=args, device="cpu")
         if status[0] & NOT_COVERED:
@@ -374,4 +385,5 @@ class RowPass:
             [self.buffers["ambiguous_acc"][lo : lo + ambiguous]],
             float(least[0]),
             not status[0] & NOT_FINITE,
+            dict(zip(group, gain_sums, strict=True)),
         )
