@@ -21,6 +21,7 @@ from __future__ import annotations
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor, wait
+from typing import Any
 
 import numpy as np
 import warp as wp
@@ -440,11 +441,12 @@ class Ensemble:
         args = (views, self.step, threshold, ftle)
         # the per-point pass and the sums in kernels, NumPy's bits (the FTLE in the pass where its
         # functions are NumPy's here: kernels.RowPass)
-        row_pass = None
-        if ftle is not None or kernels.row_pass_available():
-            row_pass = kernels.RowPass(views, ftle, self._row_buffers)
-        options = {"leaf_pass": row_pass, "leaf_sums": kernels.leaf_sums, "buffers": self._row_buffers}
-        if self.threads < 2 or self.points < 4 * TREE_LEAF:  # a few leaves: not worth the threads
+        options: dict[str, Any] = {"buffers": self._row_buffers}
+        few = self.points < 4 * TREE_LEAF  # a few leaves: not worth the threads, nor the launches
+        if not few and (ftle is not None or kernels.row_pass_available()):
+            options["leaf_pass"] = kernels.RowPass(views, ftle, self._row_buffers)
+            options["leaf_sums"] = kernels.leaf_sums
+        if self.threads < 2 or few:
             done = summarize_with_variance(*args, **options)
         elif self.run_pool is not None:
             done = summarize_with_variance(*args, pool=self.run_pool, batches=4 * self.threads, **options)
