@@ -15,7 +15,6 @@ import shutil
 from collections.abc import Iterator
 from typing import Any
 
-from ._h5 import PAGE_SIZE
 from .limits import format_bytes
 
 __all__ = [
@@ -118,6 +117,8 @@ def h5_bytes(raw: int, chunks: int = 1) -> int:
     page, so a chunk over half a page (``warpratchet._h5.PAGE_SIZE``) is counted in whole pages:
     no second one fits beside it (a row chunk of 256 float64, 2052 bytes with its checksum, takes a page).
     """
+    from ._h5 import PAGE_SIZE  # here: every command imports this module, not every one needs h5py
+
     if chunks <= 0 or raw <= 0:
         return 0
     size = -(-int(raw) // chunks) + 4
