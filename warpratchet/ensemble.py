@@ -446,13 +446,16 @@ class Ensemble:
         if not few and (ftle is not None or kernels.row_pass_available()):
             options["leaf_pass"] = kernels.RowPass(views, ftle, self._row_buffers)
             options["leaf_sums"] = kernels.leaf_sums
+        # kernels take equal shares in equal times: one piece per thread (fewer gathered parts
+        # to join); NumPy's passes balance better in smaller pieces
+        batches = self.threads if "leaf_pass" in options else 4 * self.threads
         if self.threads < 2 or few:
             done = summarize_with_variance(*args, **options)
         elif self.run_pool is not None:
-            done = summarize_with_variance(*args, pool=self.run_pool, batches=4 * self.threads, **options)
+            done = summarize_with_variance(*args, pool=self.run_pool, batches=batches, **options)
         else:
             with ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet-rows") as pool:
-                done = summarize_with_variance(*args, pool=pool, batches=4 * self.threads, **options)
+                done = summarize_with_variance(*args, pool=pool, batches=batches, **options)
         if done is None:
             self._row_buffers.clear()  # summarize needs the memory (SUMMARY_BYTES_PER_POINT)
             return None
