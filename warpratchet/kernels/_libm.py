@@ -398,8 +398,8 @@ auto glibc_ftle_block = [&](const double* __restrict dx, const double* __restric
                             const double* __restrict log_stretch, const double step,
                             double* __restrict out, const int n) -> bool {{
     const double finite = 0x1.fffffffffffffp1023;
-    double h[{CHUNK}], near_x[{CHUNK}], near_f[{CHUNK}];
-    int near_at[{CHUNK}];
+    double h[{CHUNK}], rest_x[{CHUNK}], rest_f[{CHUNK}];
+    int rest_at[{CHUNK}];
     int uncovered = 0;
     for (int first = 0; first < n; first += {CHUNK}) {{
         const int size = n - first < {CHUNK} ? n - first : {CHUNK};
@@ -409,6 +409,7 @@ auto glibc_ftle_block = [&](const double* __restrict dx, const double* __restric
         double* f = out + first;
         /* hypot's common case for every point; the others again, in full */
         int unusual = 0;
+#pragma clang loop interleave_count(2)
         for (int j = 0; j < size; ++j) {{
             const double abs_x = __builtin_fabs(x[j]), abs_y = __builtin_fabs(y[j]);
             const bool swap = abs_y > abs_x;
@@ -418,7 +419,7 @@ auto glibc_ftle_block = [&](const double* __restrict dx, const double* __restric
             const double sum = ax + ay;
             const double kernel = glibc_hypot_kernel(ax, ay);
             h[j] = ay <= eps_ax ? sum : kernel;
-            unusual += !glibc_hypot_common(abs_x, abs_y);
+            unusual += !((ax <= 0x1p511) & (ay >= 0x1p-459));
             uncovered += !((abs_x <= finite) & (abs_y <= finite));
         }}
         if (unusual) {{
@@ -427,33 +428,46 @@ auto glibc_ftle_block = [&](const double* __restrict dx, const double* __restric
                 if (!common) h[j] = glibc_hypot(x[j], y[j]);
             }}
         }}
-        /* log's table path for every point; the near-1 path and the special values again */
-        int near = 0;
-        int irregular = 0;
+        /* log: the path most of the block takes on every point, the other on the rest, gathered;
+           zero, subnormal and non-finite norms again, in full */
+        long long near = 0, irregular = 0;
         for (int j = 0; j < size; ++j) {{
-            const double hj = h[j];
-            const glibc_u64 ix = __builtin_bit_cast(glibc_u64, hj);
-            const double log_h = glibc_log_general(ix);
-            const double sum = ls[j] + log_h;
-            f[j] = sum / step;
-            near += glibc_log_near_path(hj);
-            irregular += !((hj >= 0x1p-1022) & (hj <= finite));
+            near += glibc_log_near_path(h[j]);
+            irregular += !((h[j] >= 0x1p-1022) & (h[j] <= finite));
         }}
-        if (near) {{
-            int m = 0;
+        const bool mostly_near = 2 * near > size;
+        int m = 0;
+        if (near != (mostly_near ? size : 0)) {{
             for (int j = 0; j < size; ++j) {{
-                near_at[m] = j;
-                near_x[m] = h[j];
-                m += glibc_log_near_path(h[j]);
+                rest_at[m] = j;
+                rest_x[m] = h[j];
+                m += glibc_log_near_path(h[j]) != mostly_near;
+            }}
+        }}
+        if (mostly_near) {{
+            for (int j = 0; j < size; ++j) {{
+                const double log_h = h[j] == 1.0 ? 0.0 : glibc_log_near_one(h[j]);
+                const double sum = ls[j] + log_h;
+                f[j] = sum / step;
             }}
             for (int k = 0; k < m; ++k) {{
-                const double xk = near_x[k];
-                const double log_h = xk == 1.0 ? 0.0 : glibc_log_near_one(xk);
-                const double sum = ls[near_at[k]] + log_h;
-                near_f[k] = sum / step;
+                const double log_h = glibc_log_general(__builtin_bit_cast(glibc_u64, rest_x[k]));
+                const double sum = ls[rest_at[k]] + log_h;
+                rest_f[k] = sum / step;
             }}
-            for (int k = 0; k < m; ++k) f[near_at[k]] = near_f[k];
+        }} else {{
+            for (int j = 0; j < size; ++j) {{
+                const double log_h = glibc_log_general(__builtin_bit_cast(glibc_u64, h[j]));
+                const double sum = ls[j] + log_h;
+                f[j] = sum / step;
+            }}
+            for (int k = 0; k < m; ++k) {{
+                const double log_h = rest_x[k] == 1.0 ? 0.0 : glibc_log_near_one(rest_x[k]);
+                const double sum = ls[rest_at[k]] + log_h;
+                rest_f[k] = sum / step;
+            }}
         }}
+        for (int k = 0; k < m; ++k) f[rest_at[k]] = rest_f[k];
         if (irregular) {{
             for (int j = 0; j < size; ++j) {{
                 if (!((h[j] >= 0x1p-1022) & (h[j] <= finite))) {{
