@@ -420,12 +420,13 @@ auto glibc_ftle_block = [&](const double* __restrict dx, const double* __restric
             const double kernel = glibc_hypot_kernel(ax, ay);
             h[j] = ay <= eps_ax ? sum : kernel;
             unusual += !((ax <= 0x1p511) & (ay >= 0x1p-459));
-            uncovered += !((abs_x <= finite) & (abs_y <= finite));
         }}
         if (unusual) {{
+            /* a non-finite component is one of these */
             for (int j = 0; j < size; ++j) {{
-                const bool common = glibc_hypot_common(__builtin_fabs(x[j]), __builtin_fabs(y[j]));
-                if (!common) h[j] = glibc_hypot(x[j], y[j]);
+                const double abs_x = __builtin_fabs(x[j]), abs_y = __builtin_fabs(y[j]);
+                if (!glibc_hypot_common(abs_x, abs_y)) h[j] = glibc_hypot(x[j], y[j]);
+                uncovered += !((abs_x <= finite) & (abs_y <= finite));
             }}
         }}
         /* log: the path most of the block takes on every point, the other on the rest, gathered;
@@ -445,6 +446,7 @@ auto glibc_ftle_block = [&](const double* __restrict dx, const double* __restric
             }}
         }}
         if (mostly_near) {{
+#pragma clang loop interleave_count(2)
             for (int j = 0; j < size; ++j) {{
                 const double log_h = h[j] == 1.0 ? 0.0 : glibc_log_near_one(h[j]);
                 const double sum = ls[j] + log_h;
@@ -456,6 +458,7 @@ auto glibc_ftle_block = [&](const double* __restrict dx, const double* __restric
                 rest_f[k] = sum / step;
             }}
         }} else {{
+#pragma clang loop interleave_count(2)
             for (int j = 0; j < size; ++j) {{
                 const double log_h = glibc_log_general(__builtin_bit_cast(glibc_u64, h[j]));
                 const double sum = ls[j] + log_h;
