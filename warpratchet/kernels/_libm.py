@@ -408,7 +408,7 @@ auto glibc_ftle_block = [&](const double* __restrict dx, const double* __restric
         const double* ls = log_stretch + first;
         double* f = out + first;
         /* hypot's common case for every point; the others again, in full */
-        int unusual = 0;
+        int unusual = 0, irregular = 0;
 #pragma clang loop interleave_count(2)
         for (int j = 0; j < size; ++j) {{
             const double abs_x = __builtin_fabs(x[j]), abs_y = __builtin_fabs(y[j]);
@@ -422,20 +422,19 @@ auto glibc_ftle_block = [&](const double* __restrict dx, const double* __restric
             unusual += !((ax <= 0x1p511) & (ay >= 0x1p-459));
         }}
         if (unusual) {{
-            /* a non-finite component is one of these */
+            /* a non-finite component is one of these; so is every zero, subnormal or infinite norm
+               (the common case's norms lie in [2^-459, 2^512)) */
             for (int j = 0; j < size; ++j) {{
                 const double abs_x = __builtin_fabs(x[j]), abs_y = __builtin_fabs(y[j]);
                 if (!glibc_hypot_common(abs_x, abs_y)) h[j] = glibc_hypot(x[j], y[j]);
                 uncovered += !((abs_x <= finite) & (abs_y <= finite));
+                irregular += !((h[j] >= 0x1p-1022) & (h[j] <= finite));
             }}
         }}
         /* log: the path most of the block takes on every point, the other on the rest, gathered;
            zero, subnormal and non-finite norms again, in full */
-        long long near = 0, irregular = 0;
-        for (int j = 0; j < size; ++j) {{
-            near += glibc_log_near_path(h[j]);
-            irregular += !((h[j] >= 0x1p-1022) & (h[j] <= finite));
-        }}
+        long long near = 0;
+        for (int j = 0; j < size; ++j) near += glibc_log_near_path(h[j]);
         const bool mostly_near = 2 * near > size;
         int m = 0;
         if (near != (mostly_near ? size : 0)) {{
