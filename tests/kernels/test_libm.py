@@ -159,6 +159,33 @@ def test_special_values_are_numpy_or_reported():
             assert _same_bits(got[ok], numpy_ftle(dx, dp, ls, step)[ok]).all()
 
 
+@needs_glibc
+@pytest.mark.parametrize("size", [1, 2, 3, 5, 7, 255, 257, 1023, 1025, 2_500])
+def test_blocks_mixing_every_path(size):
+    """Arrays of any length (blocks and chunks not multiples of the vector width), each block
+    mixing the common paths with the points handled again: norms near 1 and exactly 1, zero,
+    subnormal, scaled by hypot, and non-finite components; NumPy's bits wherever covered."""
+    rng = np.random.default_rng(300 + size)
+    kinds = [
+        lambda n: 1.0 + rng.uniform(-0.07, 0.07, n),
+        lambda n: np.exp(rng.uniform(np.log(1e-3), np.log(1e64), n)),
+        lambda n: np.exp2(rng.choice([-470.0, 520.0], n) + rng.uniform(-20.0, 20.0, n)),
+        lambda n: np.exp2(rng.uniform(-1074.0, -1022.0, n)),
+        lambda n: rng.choice([0.0, 1.0], n),
+    ]
+    kind = rng.choice(len(kinds), size, p=[0.4, 0.4, 0.08, 0.06, 0.06])
+    norm = np.zeros(size)
+    for k, draw in enumerate(kinds):
+        norm[kind == k] = draw(int((kind == k).sum()))
+    dx, dp = _tangents(rng, norm, _ratios(rng, size))
+    bad = rng.random(size) < 0.03
+    dx[bad] = rng.choice([np.inf, -np.inf, np.nan], int(bad.sum()))
+    log_stretch = rng.uniform(0.0, 1e5, size)
+    got, ok = ftle_like_numpy(dx, dp, log_stretch, 7.0)
+    assert np.array_equal(ok, np.isfinite(dx) & np.isfinite(dp))
+    _check(got[ok], ok[ok], numpy_ftle(dx, dp, log_stretch, 7.0)[ok], dx[ok], dp[ok])
+
+
 def test_the_gate_holds_where_the_transcription_comes_from():
     """glibc 2.36 on x86-64 with FMA and AVX2 and a NumPy without its AVX-512 log: the platform
     transcribed, where the gate must hold (elsewhere it may legitimately fail)."""

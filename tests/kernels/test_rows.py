@@ -47,3 +47,31 @@ def test_an_all_negative_zero_leaf_sums_to_positive_zero_as_in_numpy():
 def test_leaves_must_be_consecutive():
     with pytest.raises(ValueError, match="consecutive"):
         kernels.leaf_sums(np.ones(10), [(0, 4), (5, 10)])
+
+
+@pytest.mark.skipif(not kernels.row_pass_available(), reason="the row pass computes no FTLE here")
+@pytest.mark.parametrize("size", [1, 5, 256, 257, 1000])
+def test_a_non_finite_tangent_anywhere_leaves_the_group_to_numpy(size):
+    """A point whose tangent is not finite is not covered wherever it sits in a block (the group is
+    NumPy's: None); a covered point whose FTLE is infinite is a non-finite summary instead."""
+    rng = np.random.default_rng(size)
+    state = {
+        "winding": rng.integers(-5, 5, size),
+        "q": rng.uniform(0.0, 1.0, size),
+        "p0": rng.uniform(0.0, 1.0, size),
+        "dx": rng.uniform(-2.0, 2.0, size),
+        "dp": rng.uniform(-2.0, 2.0, size),
+        "log_stretch": rng.uniform(0.0, 10.0, size),
+    }
+    gain = np.empty(size)
+    assert kernels.RowPass(state)([(0, size)], gain, 10, 0.0, -1.0, 1.0) is not None
+    for where in sorted({0, size // 2, size - 1}):
+        for field in ("dx", "dp"):
+            for bad in (np.inf, -np.inf, np.nan):
+                broken = dict(state, **{field: state[field].copy()})
+                broken[field][where] = bad
+                assert kernels.RowPass(broken)([(0, size)], gain, 10, 0.0, -1.0, 1.0) is None
+        infinite = dict(state, log_stretch=state["log_stretch"].copy())
+        infinite["log_stretch"][where] = np.inf
+        result = kernels.RowPass(infinite)([(0, size)], gain, 10, 0.0, -1.0, 1.0)
+        assert result is not None and result[-1] is False

@@ -21,10 +21,17 @@ x86-64 as NumPy's manylinux wheels call it on an x86-64 CPU with FMA and AVX2:
   coefficients are the library's own bits.
 
 Both are branch-free (every path computed, the result selected), so that a loop over points can
-be vectorised (clang does, the table lookup becoming per-lane loads). Non-finite ``dx`` or ``dp`` are not
-transcribed: ``glibc_ftle_point`` reports them (its result ``false``) for the caller to take
-NumPy's value instead; every other argument, ``log``'s zero, subnormal and infinite ones
-included, gives NumPy's bits.
+be vectorised. The kernels take the FTLE of a block of points with ``glibc_ftle_block``, in
+passes that clang vectorises 4 wide (8 with AVX-512) and whose short bodies let the processor
+overlap one vector's latency with the next: ``hypot``'s common case (neither scaled nor
+negligible) for every point, then ``log``'s table path (the lookups per-lane loads), the sum and
+the division; then, only where a block has any, the points off those paths again: ``hypot`` in
+full where it scales or meets a non-finite component, ``log``'s near-1 polynomial on the points
+near 1 gathered together (vectorised), ``log`` in full at zero, subnormal and non-finite norms.
+Every point's bits are those of the branch-free functions. Non-finite ``dx`` or ``dp`` are not
+transcribed: ``glibc_ftle_point`` and ``glibc_ftle_block`` report them (their result ``false``)
+for the caller to take NumPy's value instead; every other argument, ``log``'s zero, subnormal and
+infinite ones included, gives NumPy's bits.
 
 Another machine may call other functions: NumPy on a CPU with AVX-512 has its own vectorised
 ``log``, an older glibc another ``hypot``, another C library other code again. There the
@@ -223,6 +230,8 @@ LOG_B = tuple(
 _TABLE_CPP = ",\n    ".join(f"{invc.hex()}, {logc.hex()}" for invc, logc in LOG_TABLE)
 _A = [c.hex() for c in LOG_A]
 _B = [c.hex() for c in LOG_B]
+# Points per pass of glibc_ftle_block (its buffers stay in L1).
+CHUNK = 256
 
 #: C++ statements for the start of a ``wp.func_native`` body (lambdas and a constant table):
 #:
@@ -231,7 +240,10 @@ _B = [c.hex() for c in LOG_B]
 #:   ``+inf`` gives ``+inf``, subnormals included); a negative or NaN ``x`` gives a NaN;
 #: * ``bool glibc_ftle_point(double dx, double dp, double log_stretch, double step, double* out)``:
 #:   ``*out = (log_stretch + log(hypot(dx, dp))) / step`` in NumPy's order of operations; ``false``
-#:   (and ``*out`` meaningless) where ``dx`` or ``dp`` is not finite.
+#:   (and ``*out`` meaningless) where ``dx`` or ``dp`` is not finite;
+#: * ``bool glibc_ftle_block(const double* dx, const double* dp, const double* log_stretch,
+#:   double step, double* out, int n)``: ``glibc_ftle_point`` of ``n`` points (the arrays must not
+#:   overlap ``out``), faster; ``true`` iff every ``dx`` and ``dp`` is finite.
 #:
 #: Each statement is one rounding, in the order of glibc's machine code; ``__builtin_fma`` marks
 #: where that code fuses a product into a sum.
@@ -239,23 +251,8 @@ GLIBC_FTLE_CPP = f"""
 static const double glibc_log_table[256] = {{
     {_TABLE_CPP}
 }};
-auto glibc_hypot = [](const double x, const double y) -> double {{
-    /* e_hypot.c: ax >= ay; scaled by 2^-600 where ax > 2^511, by 2^600 where ay < 2^-459 */
-    const double abs_x = __builtin_fabs(x), abs_y = __builtin_fabs(y);
-    const bool swap = abs_y > abs_x;
-    const double ax = swap ? abs_y : abs_x;
-    const double ay = swap ? abs_x : abs_y;
-    const bool large = ax > 0x1p511;
-    const bool tiny = ay < 0x1p-459;
-    const double eps_ax = ax * 0x1p-54;
-    const double ay_over_eps = ay * 0x1p54;
-    const bool negligible = large ? (ay <= eps_ax) : (tiny ? (ax >= ay_over_eps) : (ay <= eps_ax));
-    const double sum = ax + ay;
-    const double scale_in = large ? 0x1p-600 : (tiny ? 0x1p600 : 1.0);
-    const double scale_out = large ? 0x1p600 : (tiny ? 0x1p-600 : 1.0);
-    const double a = ax * scale_in;
-    const double b = ay * scale_in;
-    /* kernel(a, b) without FMA */
+auto glibc_hypot_kernel = [](const double a, const double b) -> double {{
+    /* e_hypot.c's kernel(a, b) without FMA, a >= b >= 0 (neither scaled nor negligible) */
     const double a2 = a * a;
     const double b2 = b * b;
     const double h2 = a2 + b2;
@@ -287,12 +284,29 @@ auto glibc_hypot = [](const double x, const double y) -> double {{
     const double two_h = h + h;
     const double correction = t / two_h;
     const double kernel = h - correction;
-    const double scaled = kernel * scale_out;
+    return kernel;
+}};
+auto glibc_hypot = [&](const double x, const double y) -> double {{
+    /* e_hypot.c: ax >= ay; scaled by 2^-600 where ax > 2^511, by 2^600 where ay < 2^-459 */
+    const double abs_x = __builtin_fabs(x), abs_y = __builtin_fabs(y);
+    const bool swap = abs_y > abs_x;
+    const double ax = swap ? abs_y : abs_x;
+    const double ay = swap ? abs_x : abs_y;
+    const bool large = ax > 0x1p511;
+    const bool tiny = ay < 0x1p-459;
+    const double eps_ax = ax * 0x1p-54;
+    const double ay_over_eps = ay * 0x1p54;
+    const bool negligible = large ? (ay <= eps_ax) : (tiny ? (ax >= ay_over_eps) : (ay <= eps_ax));
+    const double sum = ax + ay;
+    const double scale_in = large ? 0x1p-600 : (tiny ? 0x1p600 : 1.0);
+    const double scale_out = large ? 0x1p600 : (tiny ? 0x1p-600 : 1.0);
+    const double a = ax * scale_in;
+    const double b = ay * scale_in;
+    const double scaled = glibc_hypot_kernel(a, b) * scale_out;
     return negligible ? sum : scaled;
 }};
-auto glibc_log = [](const double x) -> double {{
-    typedef unsigned long long u64;
-    const u64 ix = __builtin_bit_cast(u64, x);
+typedef unsigned long long glibc_u64;
+auto glibc_log_near_one = [](const double x) -> double {{
     /* |x - 1| < ~0.06: log1p's polynomial, r split into rhi + rlo */
     const double r = x - 1.0;
     const double p12 = __builtin_fma(r, {_B[2]}, {_B[1]});
@@ -318,11 +332,12 @@ auto glibc_log = [](const double x) -> double {{
     const double near_lo = __builtin_fma(b0_rlo, r_rhi, near_lo0);
     const double near_y = __builtin_fma(p1to10, r3, near_lo);
     const double near_one = near_hi + near_y;
+    return near_one;
+}};
+auto glibc_log_general = [](const glibc_u64 iy) -> double {{
+    typedef glibc_u64 u64;
     /* elsewhere: x = 2^k z, z in [0x1.6p-1, 0x1.6p0), log x = k ln2 + log c + log1p(z/c - 1);
-       a subnormal x is scaled by 2^52 first */
-    const u64 scaled_bits = __builtin_bit_cast(u64, x * 0x1p52) - (52ULL << 52);
-    const bool subnormal = (x > 0.0) & (x < 0x1p-1022);
-    const u64 iy = subnormal ? scaled_bits : ix;
+       iy is x's bits (a subnormal x's after scaling by 2^52) */
     const u64 tmp = iy - 0x3fe6000000000000ULL;
     const unsigned i = (unsigned)(tmp >> 45) & 127u;
     const double kd = (double)((long long)tmp >> 52);
@@ -343,8 +358,23 @@ auto glibc_log = [](const double x) -> double {{
     const double q1to4 = __builtin_fma(q34, rt2, q12);
     const double y = __builtin_fma(rt3, q1to4, lo_a0);
     const double general = y + hi;
-    /* which path: glibc's tests on the bit pattern; then log(1) = +0 and the special values */
-    const bool near_path = ix - 0x3fee000000000000ULL < 0x3090000000000ULL;
+    return general;
+}};
+auto glibc_log_near_path = [](const double x) -> bool {{
+    /* glibc's test ix - 0x3fee000000000000 < 0x3090000000000 on x's bits ix, as doubles */
+    return (x >= 0x1.ep-1) & (x < 0x1.109p0);
+}};
+auto glibc_log = [&](const double x) -> double {{
+    typedef glibc_u64 u64;
+    const u64 ix = __builtin_bit_cast(u64, x);
+    const double near_one = glibc_log_near_one(x);
+    /* a subnormal x is scaled by 2^52 first */
+    const u64 scaled_bits = __builtin_bit_cast(u64, x * 0x1p52) - (52ULL << 52);
+    const bool subnormal = (x > 0.0) & (x < 0x1p-1022);
+    const u64 iy = subnormal ? scaled_bits : ix;
+    const double general = glibc_log_general(iy);
+    /* which path; then log(1) = +0 and the special values */
+    const bool near_path = glibc_log_near_path(x);
     const double value = near_path ? near_one : general;
     const double one = ix == 0x3ff0000000000000ULL ? 0.0 : value;
     const bool regular = (x >= 0x1p-1074) & (x <= 0x1.fffffffffffffp1023);
@@ -359,6 +389,97 @@ auto glibc_ftle_point = [&](const double dx, const double dp, const double log_s
     *out = sum / step;
     const double finite = 0x1.fffffffffffffp1023;
     return (__builtin_fabs(dx) <= finite) & (__builtin_fabs(dp) <= finite);
+}};
+auto glibc_hypot_common = [](const double abs_x, const double abs_y) -> bool {{
+    /* hypot neither scales (both components in [2^-459, 2^511]) nor meets a NaN */
+    return (abs_x <= 0x1p511) & (abs_y <= 0x1p511) & (abs_x >= 0x1p-459) & (abs_y >= 0x1p-459);
+}};
+auto glibc_ftle_block = [&](const double* __restrict dx, const double* __restrict dp,
+                            const double* __restrict log_stretch, const double step,
+                            double* __restrict out, const int n) -> bool {{
+    const double finite = 0x1.fffffffffffffp1023;
+    double h[{CHUNK}], rest_x[{CHUNK}], rest_f[{CHUNK}];
+    int rest_at[{CHUNK}];
+    int uncovered = 0;
+    for (int first = 0; first < n; first += {CHUNK}) {{
+        const int size = n - first < {CHUNK} ? n - first : {CHUNK};
+        const double* x = dx + first;
+        const double* y = dp + first;
+        const double* ls = log_stretch + first;
+        double* f = out + first;
+        /* hypot's common case for every point; the others again, in full */
+        int unusual = 0, irregular = 0;
+#pragma clang loop interleave_count(2)
+        for (int j = 0; j < size; ++j) {{
+            const double abs_x = __builtin_fabs(x[j]), abs_y = __builtin_fabs(y[j]);
+            const bool swap = abs_y > abs_x;
+            const double ax = swap ? abs_y : abs_x;
+            const double ay = swap ? abs_x : abs_y;
+            const double eps_ax = ax * 0x1p-54;
+            const double sum = ax + ay;
+            const double kernel = glibc_hypot_kernel(ax, ay);
+            h[j] = ay <= eps_ax ? sum : kernel;
+            unusual += !((ax <= 0x1p511) & (ay >= 0x1p-459));
+        }}
+        if (unusual) {{
+            /* a non-finite component is one of these; so is every zero, subnormal or infinite norm
+               (the common case's norms lie in [2^-459, 2^512)) */
+            for (int j = 0; j < size; ++j) {{
+                const double abs_x = __builtin_fabs(x[j]), abs_y = __builtin_fabs(y[j]);
+                if (!glibc_hypot_common(abs_x, abs_y)) h[j] = glibc_hypot(x[j], y[j]);
+                uncovered += !((abs_x <= finite) & (abs_y <= finite));
+                irregular += !((h[j] >= 0x1p-1022) & (h[j] <= finite));
+            }}
+        }}
+        /* log: the path most of the block takes on every point, the other on the rest, gathered;
+           zero, subnormal and non-finite norms again, in full */
+        long long near = 0;
+        for (int j = 0; j < size; ++j) near += glibc_log_near_path(h[j]);
+        const bool mostly_near = 2 * near > size;
+        int m = 0;
+        if (near != (mostly_near ? size : 0)) {{
+            for (int j = 0; j < size; ++j) {{
+                rest_at[m] = j;
+                rest_x[m] = h[j];
+                m += glibc_log_near_path(h[j]) != mostly_near;
+            }}
+        }}
+        if (mostly_near) {{
+#pragma clang loop interleave_count(2)
+            for (int j = 0; j < size; ++j) {{
+                const double log_h = h[j] == 1.0 ? 0.0 : glibc_log_near_one(h[j]);
+                const double sum = ls[j] + log_h;
+                f[j] = sum / step;
+            }}
+            for (int k = 0; k < m; ++k) {{
+                const double log_h = glibc_log_general(__builtin_bit_cast(glibc_u64, rest_x[k]));
+                const double sum = ls[rest_at[k]] + log_h;
+                rest_f[k] = sum / step;
+            }}
+        }} else {{
+#pragma clang loop interleave_count(2)
+            for (int j = 0; j < size; ++j) {{
+                const double log_h = glibc_log_general(__builtin_bit_cast(glibc_u64, h[j]));
+                const double sum = ls[j] + log_h;
+                f[j] = sum / step;
+            }}
+            for (int k = 0; k < m; ++k) {{
+                const double log_h = rest_x[k] == 1.0 ? 0.0 : glibc_log_near_one(rest_x[k]);
+                const double sum = ls[rest_at[k]] + log_h;
+                rest_f[k] = sum / step;
+            }}
+        }}
+        for (int k = 0; k < m; ++k) f[rest_at[k]] = rest_f[k];
+        if (irregular) {{
+            for (int j = 0; j < size; ++j) {{
+                if (!((h[j] >= 0x1p-1022) & (h[j] <= finite))) {{
+                    const double sum = ls[j] + glibc_log(h[j]);
+                    f[j] = sum / step;
+                }}
+            }}
+        }}
+    }}
+    return uncovered == 0;
 }};
 """
 
@@ -398,12 +519,15 @@ double* out = arrays.out.data;
 unsigned char* ok = arrays.ok.data;
 const double step_value = step;
 const double finite = 0x1.fffffffffffffp1023;
-for (long long i = first; i < last; i++) {{
+if (quantity == {FTLE}) {{
+    glibc_ftle_block(a + first, b + first, c + first, step_value, out + first, (int)(last - first));
+    for (long long i = first; i < last; i++) {{
+        ok[i] = (__builtin_fabs(a[i]) <= finite) & (__builtin_fabs(b[i]) <= finite);
+    }}
+}} else for (long long i = first; i < last; i++) {{
     double value;
     bool good;
-    if (quantity == {FTLE}) {{
-        good = glibc_ftle_point(a[i], b[i], c[i], step_value, &value);
-    }} else if (quantity == {HYPOT}) {{
+    if (quantity == {HYPOT}) {{
         value = glibc_hypot(a[i], b[i]);
         good = (__builtin_fabs(a[i]) <= finite) & (__builtin_fabs(b[i]) <= finite);
     }} else {{

@@ -142,7 +142,6 @@ wp::int64 k = lo;
 double least = INFINITY;
 int status = 0;
 double f_block[{BLOCK}], a_block[{BLOCK}];
-unsigned char ok_block[{BLOCK}];
 for (int leaf = 0; leaf < leaves; ++leaf) {{
 const wp::int64 hi = bounds.data[leaf + 1];
 for (wp::int64 first = bounds.data[leaf]; first < hi; first += {BLOCK}) {{
@@ -151,16 +150,7 @@ for (wp::int64 first = bounds.data[leaf]; first < hi; first += {BLOCK}) {{
     if (given) {{
         __builtin_memcpy(f_block, inputs.ftle.data + first, size * sizeof(double));
     }} else {{
-        const double* dx_block = dx + first;
-        const double* dp_block = dp + first;
-        const double* log_stretch_block = log_stretch + first;
-        for (int j = 0; j < size; ++j) {{
-            double value;
-            const bool good = glibc_ftle_point(dx_block[j], dp_block[j], log_stretch_block[j], step, &value);
-            f_block[j] = value;
-            ok_block[j] = good;
-        }}
-        for (int j = 0; j < size; ++j) covered &= ok_block[j];
+        covered = glibc_ftle_block(dx + first, dp + first, log_stretch + first, step, f_block, size);
     }}
     if (!covered) status |= {NOT_COVERED};
     int finite = 1;
