@@ -75,3 +75,30 @@ def test_a_non_finite_tangent_anywhere_leaves_the_group_to_numpy(size):
         infinite["log_stretch"][where] = np.inf
         result = kernels.RowPass(infinite)([(0, size)], gain, 10, 0.0, -1.0, 1.0)
         assert result is not None and result[4] is False  # finite: no
+
+
+def test_the_gates_verdict_is_kept_per_machine_and_read_back(monkeypatch, tmp_path):
+    """The libm gate runs once per machine and set of binaries: its verdict is kept in Warp's
+    kernel cache under a key of what it depends on; a kept verdict is used as it is, a file that
+    holds anything else is checked again."""
+    import warp as wp
+
+    from warpratchet.kernels import _rows
+
+    kernels.init_warp()
+    key = _rows._gate_key()
+    assert key is not None  # Linux, with glibc's libm loaded
+    monkeypatch.setattr(wp.config, "kernel_cache_dir", str(tmp_path))
+    checks = []
+    monkeypatch.setattr(_rows, "matches_numpy", lambda: checks.append(1) or True)
+    assert _rows._gate_verdict() is True and len(checks) == 1
+    kept = tmp_path / f"warpratchet-libm-{key}"
+    assert kept.read_text() == "True" and list(tmp_path.iterdir()) == [kept]
+    assert _rows._gate_verdict() is True and len(checks) == 1  # read back, not checked again
+    kept.write_text("False")
+    assert _rows._gate_verdict() is False and len(checks) == 1
+    kept.write_text("garbage")
+    assert _rows._gate_verdict() is True and len(checks) == 2
+    monkeypatch.setattr(_rows, "_available", None)
+    kept.write_text("False")  # a machine whose NumPy the transcription does not match
+    assert kernels.row_pass_available() is False  # (monkeypatch restores the process's verdict)

@@ -20,12 +20,17 @@ are left to NumPy.
 
 from __future__ import annotations
 
+import contextlib
+import hashlib
+import itertools
+import os
 import threading
 from typing import Any
 
 import numpy as np
 import warp as wp
 
+from . import _libm
 from ._libm import GLIBC_FTLE_CPP, matches_numpy
 from ._runtime import CPU_MODULE_OPTIONS, init_warp
 
@@ -289,14 +294,61 @@ _available: bool | None = None
 _available_lock = threading.Lock()
 
 
+def _gate_key() -> str | None:
+    """What the gate's verdict depends on, hashed: the transcription and its sample (``_libm``'s
+    source), the libm and NumPy binaries this process loaded, the CPU (glibc and NumPy choose
+    their code by its features), Warp and the compiler flags. None where it cannot be known."""
+    try:
+        with open("/proc/self/maps") as maps:
+            loaded = sorted(
+                {line.split()[-1] for line in maps if "/libm" in line or "_multiarray_umath" in line}
+            )
+        with open("/proc/cpuinfo") as cpuinfo:
+            cpu = [
+                line for line in itertools.islice(cpuinfo, 64) if line.startswith(("model name", "flags"))
+            ][:2]
+        with open(_libm.__file__, "rb") as source:
+            parts = [hashlib.sha256(source.read()).hexdigest(), wp.config.version, CPU_MODULE_OPTIONS, *cpu]
+        for path in loaded:
+            info = os.stat(path)
+            parts.append((path, info.st_size, info.st_mtime_ns))
+    except (OSError, IndexError):
+        return None
+    if not any("/libm" in path for path in loaded) or len(cpu) < 2:
+        return None
+    return hashlib.sha256(repr(parts).encode()).hexdigest()[:32]
+
+
+def _gate_verdict() -> bool:
+    """:func:`._libm.matches_numpy`, kept in Warp's kernel cache under :func:`_gate_key` (the check
+    takes a tenth of a second; the same binaries on the same CPU give the same verdict)."""
+    key = _gate_key()
+    path = None if key is None else os.path.join(wp.config.kernel_cache_dir or "", f"warpratchet-libm-{key}")
+    if path is not None and os.path.isfile(path):
+        with contextlib.suppress(OSError):
+            with open(path) as kept:
+                verdict = kept.read()
+            if verdict in ("True", "False"):
+                return verdict == "True"
+    verdict = bool(matches_numpy())
+    if path is not None:
+        with contextlib.suppress(OSError):  # a cache that cannot be written is only slower
+            partial = f"{path}.{os.getpid()}.tmp"
+            with open(partial, "w") as kept:
+                kept.write(str(verdict))
+            os.replace(partial, path)
+    return verdict
+
+
 def row_pass_available() -> bool:
-    """Whether :class:`RowPass` computes the FTLE itself here (:func:`._libm.matches_numpy`); checked
-    once per process. Without it a row pass needs the FTLE given."""
+    """Whether :class:`RowPass` computes the FTLE itself here (:func:`._libm.matches_numpy`); known
+    once per process (and per machine: :func:`_gate_verdict`). Without it a row pass needs the FTLE
+    given."""
     global _available
     with _available_lock:
         if _available is None:
             init_warp()
-            _available = bool(matches_numpy())
+            _available = _gate_verdict()
         return _available
 
 
