@@ -22,16 +22,18 @@ x86-64 as NumPy's manylinux wheels call it on an x86-64 CPU with FMA and AVX2:
 
 Both are branch-free (every path computed, the result selected), so that a loop over points can
 be vectorised. The kernels take the FTLE of a block of points with ``glibc_ftle_block``, in
-passes that clang vectorises 4 wide (8 with AVX-512) and whose short bodies let the processor
-overlap one vector's latency with the next: ``hypot``'s common case (neither scaled nor
-negligible) for every point, then ``log``'s table path (the lookups per-lane loads), the sum and
-the division; then, only where a block has any, the points off those paths again: ``hypot`` in
-full where it scales or meets a non-finite component, ``log``'s near-1 polynomial on the points
-near 1 gathered together (vectorised), ``log`` in full at zero, subnormal and non-finite norms.
-Every point's bits are those of the branch-free functions. Non-finite ``dx`` or ``dp`` are not
-transcribed: ``glibc_ftle_point`` and ``glibc_ftle_block`` report them (their result ``false``)
-for the caller to take NumPy's value instead; every other argument, ``log``'s zero, subnormal and
-infinite ones included, gives NumPy's bits.
+passes over chunks of ``CHUNK`` points that clang vectorises 4 wide (8 with AVX-512) and
+whose short bodies let the processor overlap one vector's latency with the next: ``hypot``'s
+common case (neither scaled nor negligible) on every point; a count of the norms on ``log``'s
+near-1 path; the path most of the chunk takes (the table path, its lookups per-lane loads, or
+the near-1 polynomial) on every point, with the sum and the division; the other path on the
+remaining points, gathered into a buffer. ``hypot`` in full where it scales or meets a
+non-finite component, and ``log`` in full at a zero, subnormal or infinite norm (only such points
+have one), run only for the points that need them. Every point's bits are those of the
+branch-free functions. Non-finite ``dx`` or ``dp`` are not transcribed: ``glibc_ftle_point`` and
+``glibc_ftle_block`` report them (their result ``false``) for the caller to take NumPy's value
+instead; every other argument, ``log``'s zero, subnormal and infinite ones included, gives
+NumPy's bits.
 
 Another machine may call other functions: NumPy on a CPU with AVX-512 has its own vectorised
 ``log``, an older glibc another ``hypot``, another C library other code again. There the
@@ -230,7 +232,7 @@ LOG_B = tuple(
 _TABLE_CPP = ",\n    ".join(f"{invc.hex()}, {logc.hex()}" for invc, logc in LOG_TABLE)
 _A = [c.hex() for c in LOG_A]
 _B = [c.hex() for c in LOG_B]
-# Points per pass of glibc_ftle_block (its buffers stay in L1).
+#: Points per pass of ``glibc_ftle_block`` (its buffers stay in L1).
 CHUNK = 256
 
 #: C++ statements for the start of a ``wp.func_native`` body (lambdas and a constant table):
@@ -397,6 +399,7 @@ auto glibc_hypot_common = [](const double abs_x, const double abs_y) -> bool {{
 auto glibc_ftle_block = [&](const double* __restrict dx, const double* __restrict dp,
                             const double* __restrict log_stretch, const double step,
                             double* __restrict out, const int n) -> bool {{
+    /* the passes count points (clang vectorises a sum, not an &= of comparisons) */
     const double finite = 0x1.fffffffffffffp1023;
     double h[{CHUNK}], rest_x[{CHUNK}], rest_f[{CHUNK}];
     int rest_at[{CHUNK}];
