@@ -175,6 +175,8 @@ class Ensemble:
         self.points = points
         self._summaries: dict[tuple, Summary] = {}  # (step, threshold, threshold_rule): summary at this step
         self._row_buffers: dict[str, np.ndarray] = {}  # the summaries' arrays, kept for the next row
+        self._views: dict[str, np.ndarray] = {}  # array()'s zero-copy views on the CPU
+        self._views_live = wp.get_device(self.device).is_cpu
         self._variance: tuple | None = None  # (step, variance of p_n - p_0) of the last summary
 
     @classmethod
@@ -270,8 +272,12 @@ class Ensemble:
         On the CPU a zero-copy view of the live state (copy it before the next run); read-only,
         since only a run changes the state (:meth:`summary` keeps each step's; see :meth:`from_state`).
         """
-        values = self._arrays[name].numpy()
-        values.flags.writeable = False
+        values = self._views.get(name)
+        if values is None:
+            values = self._arrays[name].numpy()
+            values.flags.writeable = False
+            if self._views_live:  # a view of the memory itself (not a copy off a GPU): kept
+                self._views[name] = values
         return values
 
     def views(self) -> dict[str, np.ndarray]:
