@@ -49,6 +49,8 @@ class ProgressBar:
     # -- a counter ---------------------------------------------------------------------------------
     def open(self, total: int, initial: int = 0) -> None:
         """Start a bar at ``initial`` of ``total``."""
+        if self.disable:  # nothing to draw: not even tqdm's import
+            return
         if self.notebook:
             from tqdm.auto import tqdm
         else:
