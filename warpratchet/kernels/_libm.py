@@ -52,7 +52,7 @@ import functools
 import numpy as np
 import warp as wp
 
-from ._runtime import CPU_MODULE_OPTIONS, check_cpu_isa_runs, init_warp
+from ._runtime import CPU_MODULE_OPTIONS, arrays_struct, check_cpu_isa_runs, init_warp
 
 __all__ = [
     "GLIBC_FTLE_CPP",
@@ -494,13 +494,7 @@ FTLE, HYPOT, LOG = 0, 1, 2
 _KERNELS: dict[str, wp.Kernel] = {}
 
 
-@wp.struct
-class _Arrays:
-    a: wp.array(dtype=wp.float64)
-    b: wp.array(dtype=wp.float64)
-    c: wp.array(dtype=wp.float64)
-    out: wp.array(dtype=wp.float64)
-    ok: wp.array(dtype=wp.uint8)
+_Arrays = arrays_struct("_Arrays", {**dict.fromkeys(("a", "b", "c", "out"), wp.float64), "ok": wp.uint8})
 
 
 def _kernel(source: str) -> wp.Kernel:

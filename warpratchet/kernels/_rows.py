@@ -32,7 +32,7 @@ import warp as wp
 
 from . import _libm
 from ._libm import GLIBC_FTLE_CPP, matches_numpy
-from ._runtime import CPU_MODULE_OPTIONS, init_warp
+from ._runtime import CPU_MODULE_OPTIONS, arrays_struct, init_warp
 
 __all__ = ["ROW_FIELDS", "SUM_TERMS", "RowPass", "leaf_sums", "row_pass_available"]
 
@@ -49,28 +49,21 @@ BLOCK = 256
 _MODULE = "warpratchet.kernels.rows"
 
 
-@wp.struct
-class RowInputs:
-    winding: wp.array(dtype=wp.int64)
-    q: wp.array(dtype=wp.float64)
-    p0: wp.array(dtype=wp.float64)
-    dx: wp.array(dtype=wp.float64)
-    dp: wp.array(dtype=wp.float64)
-    log_stretch: wp.array(dtype=wp.float64)
-    ftle: wp.array(dtype=wp.float64)  # empty: computed here
-
-
-@wp.struct
-class RowOutputs:
-    gain: wp.array(dtype=wp.float64)
-    chaotic_ftle: wp.array(dtype=wp.float64)
-    chaotic_acc: wp.array(dtype=wp.float64)
-    ambiguous_acc: wp.array(dtype=wp.float64)
-    chaotic_count: wp.array(dtype=wp.int64)
-    ambiguous_count: wp.array(dtype=wp.int64)
-    least: wp.array(dtype=wp.float64)
-    status: wp.array(dtype=wp.int32)
-    gain_sums: wp.array(dtype=wp.float64)
+# ``ftle`` empty: computed in the pass
+RowInputs = arrays_struct(
+    "RowInputs",
+    {"winding": wp.int64, **dict.fromkeys(("q", "p0", "dx", "dp", "log_stretch", "ftle"), wp.float64)},
+)
+RowOutputs = arrays_struct(
+    "RowOutputs",
+    {
+        **dict.fromkeys(("gain", "chaotic_ftle", "chaotic_acc", "ambiguous_acc"), wp.float64),
+        **dict.fromkeys(("chaotic_count", "ambiguous_count"), wp.int64),
+        "least": wp.float64,
+        "status": wp.int32,
+        "gain_sums": wp.float64,
+    },
+)
 
 
 # NumPy's ``np.add.reduce`` of a contiguous float64 array, operation by operation: the identity
@@ -130,6 +123,10 @@ _GROUP_CPU = (
     + _PAIRWISE_CPU
     + f"""
 const int leaves = (int)(bounds.shape[0] - 1);
+const double step = row.step;
+const double threshold = row.threshold;
+const double low = row.low;
+const double high = row.high;
 const wp::int64 lo = bounds.data[0];
 const bool given = inputs.ftle.shape[0] != 0;
 const wp::int64* winding = inputs.winding.data;
@@ -199,28 +196,20 @@ outputs.status.data[0] = status;
 )
 
 
+@wp.struct
+class RowScalars:
+    step: wp.float64
+    threshold: wp.float64
+    low: wp.float64
+    high: wp.float64
+
+
 @wp.func_native(_GROUP_CPU)
-def _group_cpu(
-    inputs: RowInputs,
-    outputs: RowOutputs,
-    bounds: wp.array(dtype=wp.int64),
-    step: wp.float64,
-    threshold: wp.float64,
-    low: wp.float64,
-    high: wp.float64,
-): ...
+def _group_cpu(inputs: RowInputs, outputs: RowOutputs, bounds: wp.array(dtype=wp.int64), row: RowScalars): ...
 
 
-def _row_kernel(
-    inputs: RowInputs,
-    outputs: RowOutputs,
-    bounds: wp.array(dtype=wp.int64),
-    step: wp.float64,
-    threshold: wp.float64,
-    low: wp.float64,
-    high: wp.float64,
-):
-    _group_cpu(inputs, outputs, bounds, step, threshold, low, high)
+def _row_kernel(inputs: RowInputs, outputs: RowOutputs, bounds: wp.array(dtype=wp.int64), row: RowScalars):
+    _group_cpu(inputs, outputs, bounds, row)
 
 
 wp.set_module_options(CPU_MODULE_OPTIONS, _MODULE)
@@ -416,7 +405,9 @@ class RowPass:
         gain_sums = np.empty(len(group))
         outputs.gain_sums = _wrap(gain_sums, wp.float64)
         bounds = _wrap(np.array([lo for lo, _ in group] + [hi], dtype=np.int64), wp.int64)
-        args = [self.inputs, outputs, bounds, float(step), float(threshold), float(low), float(high)]
+        row = RowScalars()
+        row.step, row.threshold, row.low, row.high = float(step), float(threshold), float(low), float(high)
+        args = [self.inputs, outputs, bounds, row]
         wp.launch(_row, dim=1, inputs=args, device="cpu")
         if status[0] & NOT_COVERED:
             return None

@@ -30,6 +30,7 @@ __all__ = [
     "CPU_ISA",
     "CPU_ISAS",
     "check_cpu_isa_runs",
+    "arrays_struct",
 ]
 
 CPU_MODULE = "warpratchet.kernels.cpu"
@@ -141,3 +142,10 @@ class _stderr_muted:
     def __exit__(self, *exc):
         os.dup2(self._saved, 2)
         os.close(self._saved)
+
+
+def arrays_struct(name: str, fields: dict) -> type:
+    """A Warp struct of arrays, one per field (``name: dtype``), in the fields' order: what a
+    kernel with many arrays takes as one argument."""
+    annotations = {field: wp.array(dtype=dtype) for field, dtype in fields.items()}
+    return wp.struct(type(name, (), {"__annotations__": annotations, "__module__": __name__}))
