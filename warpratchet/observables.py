@@ -424,17 +424,18 @@ def _contiguous(parts: list[np.ndarray], buffers: dict, name: str) -> np.ndarray
     return np.concatenate(parts, out=_buffer(buffers, name, size))
 
 
+def _pieces(items: list, count: int) -> list[list]:
+    """``items`` cut into at most ``count`` contiguous, non-empty pieces of near-equal length."""
+    cuts = np.linspace(0, len(items), min(count, len(items)) + 1).astype(int)
+    return [items[a:b] for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a]
+
+
 def _batched(pool: Any, jobs: list, batches: int) -> list:
     """The results of the zero-argument callables ``jobs``, in order: on ``pool`` in ``batches``
     contiguous batches, or here without a pool."""
     if pool is None:
         return [job() for job in jobs]
-    cuts = np.linspace(0, len(jobs), min(batches, len(jobs)) + 1).astype(int)
-    futures = [
-        pool.submit(lambda part=jobs[a:b]: [job() for job in part])
-        for a, b in zip(cuts[:-1], cuts[1:], strict=True)
-        if b > a
-    ]
+    futures = [pool.submit(lambda part=part: [job() for job in part]) for part in _pieces(jobs, batches)]
     return [result for future in futures for result in future.result()]
 
 
@@ -526,9 +527,7 @@ def summarize_with_variance(
                 k += values.size
         return [chaotic_ftle[:m]], [chaotic_acc[:m]], [ambiguous_acc[:k]], least, finite
 
-    cuts = np.linspace(0, len(leaves), min(batches, len(leaves)) + 1).astype(int)
-    groups = [leaves[a:b] for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a]
-    firsts = _batched(pool, [lambda g=g: first_pass(g) for g in groups], batches)
+    firsts = _batched(pool, [lambda g=g: first_pass(g) for g in _pieces(leaves, batches)], batches)
     if not all(part[4] for part in firsts):
         return None
     # one contiguous array each: the sums below read every value two or three times, in leaves
@@ -545,11 +544,9 @@ def summarize_with_variance(
     def sums_of(values: np.ndarray, leaves: list, term: str = "value", center: float = 0.0) -> list:
         """Jobs that give the sums of ``values``' terms over ``leaves``, a list of sums each."""
         if leaf_sums is not None:  # one call per batch of leaves
-            cuts = np.linspace(0, len(leaves), min(batches, len(leaves)) + 1).astype(int)
             return [
-                lambda part=leaves[a:b]: list(leaf_sums(values, part, term, center))
-                for a, b in zip(cuts[:-1], cuts[1:], strict=True)
-                if b > a
+                lambda part=part: list(leaf_sums(values, part, term, center))
+                for part in _pieces(leaves, batches)
             ]
 
         def job(lo: int, hi: int) -> list:

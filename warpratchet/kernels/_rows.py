@@ -1,4 +1,5 @@
-"""``row_pass``: a history row's per-point work in one CPU kernel, bit for bit NumPy's.
+"""``RowPass`` and ``leaf_sums``: a history row's per-point work and sums in CPU kernels, bit for bit
+NumPy's.
 
 A row's summary (:func:`warpratchet.observables.summarize_with_variance`) needs, for every point,
 the FTLE ``(log_stretch + log(hypot(dx, dp))) / n`` of Eq. (lyap), the gain
@@ -8,14 +9,15 @@ In NumPy that is some twenty passes over the ensemble and three boolean gathers;
 pass over each group of the summary's leaves (a group's gathered values stay in the group's own
 stretch of the output, so groups run in any order, on any thread). Every value is formed by
 the same IEEE operations in the same order as NumPy's (no contraction: ``-ffp-contract=off``), so
-the row is the same to the bit; the sums stay NumPy's, in :mod:`warpratchet.observables`.
+the row is the same to the bit. ``leaf_sums`` adds up a leaf as ``np.add.reduce`` does (NumPy's
+pairwise order); the leaves' totals are put together in :mod:`warpratchet.observables`.
 
 The FTLE's ``hypot`` and ``log`` are the ones NumPy calls: on a CPU whose NumPy takes them from
 glibc, :mod:`._libm`'s transcriptions of glibc's functions, used only where
 :func:`._libm.matches_numpy` has found them equal to NumPy's on this machine; elsewhere (another
 C library, NumPy's own SIMD ``log``) the row's FTLE is NumPy's, computed before the pass. A point
-the transcription does not cover (a non-finite or extreme tangent) is reported, and its leaves
-are left to NumPy.
+the transcription does not cover (a non-finite tangent) is reported, and its group is left to
+NumPy.
 """
 
 from __future__ import annotations
@@ -309,8 +311,9 @@ def _gate_key() -> str | None:
 
 
 def _gate_verdict() -> bool:
-    """:func:`._libm.matches_numpy`, kept in Warp's kernel cache under :func:`_gate_key` (the check
-    takes a tenth of a second; the same binaries on the same CPU give the same verdict)."""
+    """:func:`._libm.matches_numpy`, kept in Warp's kernel cache under :func:`_gate_key`: the check
+    compares a few hundred thousand arguments with NumPy, and the same binaries on the same CPU give
+    the same verdict."""
     key = _gate_key()
     path = None if key is None else os.path.join(wp.config.kernel_cache_dir or "", f"warpratchet-libm-{key}")
     if path is not None and os.path.isfile(path):
