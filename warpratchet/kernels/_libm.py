@@ -52,6 +52,7 @@ import functools
 import numpy as np
 import warp as wp
 
+from ..observables import lyapunov
 from ._runtime import CPU_MODULE_OPTIONS, arrays_struct, check_cpu_isa_runs, init_warp
 
 __all__ = [
@@ -608,9 +609,10 @@ def log_like_numpy(x, *, source: str = GLIBC_FTLE_CPP):
 
 
 def numpy_ftle(dx, dp, log_stretch, step: float) -> np.ndarray:
-    """What the transcription reproduces: NumPy's ``(log_stretch + log(hypot(dx, dp))) / step``."""
+    """What the transcription reproduces: :func:`warpratchet.observables.lyapunov`, NumPy's
+    ``(log_stretch + log(hypot(dx, dp))) / step`` (here quiet about the special values)."""
     with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-        return (log_stretch + np.log(np.hypot(dx, dp))) / step
+        return lyapunov({"log_stretch": log_stretch, "dx": dx, "dp": dp}, step)
 
 
 #: Arguments where ``log`` rounds differently if one of its FMAs is left unfused: ``r = z/c - 1``
