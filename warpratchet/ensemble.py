@@ -18,6 +18,7 @@ is independent, so results are bitwise identical for any thread count.
 
 from __future__ import annotations
 
+import operator
 import os
 from collections.abc import Iterable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor, wait
@@ -178,6 +179,8 @@ class Ensemble:
         self._views: dict[str, np.ndarray] = {}  # array()'s zero-copy views on the CPU
         self._views_live = wp.get_device(self.device).is_cpu
         self._variance: tuple | None = None  # (step, variance of p_n - p_0) of the last summary
+        self._recorded: dict[tuple[int, int], tuple] = {}  # shard (lo, hi): (what it uses, its launch)
+        self._shard_bounds: tuple[int, list[tuple[int, int]]] | None = None  # (threads, shards)
 
     @classmethod
     def bytes_per_point(cls) -> int:
@@ -305,9 +308,22 @@ class Ensemble:
     def _launch(self, lo: int, hi: int, step0: int, steps: int) -> None:
         arrays = [self._arrays[name] for name in _KERNEL_FIELDS]
         extra = self._extra_arrays()
-        self._kernel.launch(
-            self.device, [a[lo:hi] for a in arrays], [a[lo:hi] for a in extra], step0, steps, self.params
-        )
+        # The shard's launch, recorded once and replayed at each chunk (the arrays and the map do
+        # not change between chunks); recorded again if the kernel or an array is another object.
+        uses = (self._kernel, *arrays, *extra)
+        kept = self._recorded.get((lo, hi))
+        if kept is None or len(kept[0]) != len(uses) or not all(map(operator.is_, kept[0], uses)):
+            shard = [a[lo:hi] for a in arrays], [a[lo:hi] for a in extra]
+            kept = self._recorded[(lo, hi)] = uses, self._kernel.recorded(self.device, *shard, self.params)
+        self._kernel.replay(kept[1], step0, steps)
+
+    def _shards(self) -> list[tuple[int, int]]:
+        """The points ``(lo, hi)`` of each CPU thread's launch: :attr:`threads` near-equal shards."""
+        if self._shard_bounds is None or self._shard_bounds[0] != self.threads:
+            bounds = [int(b) for b in np.linspace(0, self.points, self.threads + 1).astype(int)]
+            shards = [(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
+            self._shard_bounds = self.threads, shards
+        return self._shard_bounds[1]
 
     def _advance(self, steps: int, pool: ThreadPoolExecutor | None) -> None:
         self._summaries = {}  # the state moves on
@@ -320,10 +336,14 @@ class Ensemble:
                 self._launch(0, self.points, self.step, todo)
                 wp.synchronize_device(self.device)
             else:
-                bounds = np.linspace(0, self.points, self.threads + 1).astype(int)
-                shards = [(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
-                futures = [pool.submit(self._launch, lo, hi, self.step, todo) for lo, hi in shards]
-                wait(futures)  # a failed shard's error waits until no shard writes the arrays
+                # This thread takes the first shard itself (a Warp CPU launch releases the GIL)
+                # rather than wait for the pool's threads to wake.
+                first, *rest = self._shards()
+                futures = [pool.submit(self._launch, lo, hi, self.step, todo) for lo, hi in rest]
+                try:
+                    self._launch(*first, self.step, todo)
+                finally:
+                    wait(futures)  # a failed shard's error waits until no shard writes the arrays
                 for future in futures:
                     future.result()
             self.step += todo

@@ -114,6 +114,26 @@ def test_a_launch_refuses_a_step_count_it_cannot_carry():
         kernels.advance_map.launch("cpu", arrays, [], 0, 2**31, ens.params)
 
 
+def test_a_replayed_launch_advances_the_arrays_the_ensemble_holds_now():
+    """An ensemble records each shard's launch once and replays it chunk after chunk
+    (``AdvanceKernel.recorded``); an array replaced by another object must be the one advanced
+    from then on, never the one the launch was recorded with."""
+    p = MapParams(3.0, 0.1, 0.01)
+    ens, twin = (Ensemble.sample(p, 1001, "torus", seed=5, threads=2) for _ in range(2))
+    ens.run(10, chunk_steps=3)
+    recorded = dict(ens._recorded)
+    assert len(recorded) == 2  # one per shard
+    old = ens._arrays["dx"]
+    ens._arrays["dx"] = wp.clone(old)
+    old.fill_(np.nan)  # a replay of the old recording would advance these, and leave the new dx behind
+    ens._views.clear()
+    ens.run(10, chunk_steps=3)
+    assert all(ens._recorded[shard][1] is not launch for shard, (_, launch) in recorded.items())
+    twin.run(20)
+    for name, values in twin.state().items():
+        np.testing.assert_array_equal(ens.state()[name], values, err_msg=name)
+
+
 def _advance_arrays(kernel, body, p, x, q, step0, steps, extra_fields=0):
     """Advance fresh state arrays (tangent (1, 0)) with ``kernel`` on one step body on the CPU."""
     state = Ensemble(p, x, q, threads=1).state()

@@ -38,6 +38,9 @@ from ._step import CPU, INTERLEAVE, PORTABLE, RENORM_CHECK_EVERY, Body, Coeffici
 
 __all__ = ["MAX_LAUNCH_STEPS", "Variant", "AdvanceKernel", "advance_kernel", "launch_dim"]
 
+#: A kernel's state or variant arrays, in the order of its struct.
+Arrays = Sequence[wp.array]
+
 #: Most steps one launch advances (the kernel's loop counter is a 32-bit int).
 MAX_LAUNCH_STEPS = 2**31 - 1
 
@@ -276,21 +279,34 @@ class AdvanceKernel:
         ``extra``: the variant's arrays, in the order of its ``arrays`` struct; ``params``: a
         :class:`~warpratchet.params.MapParams` (``K, b1, b2, l1, l2, c``).
         """
+        self.replay(self.recorded(device, state, extra, params, body), step0, steps)
+
+    def recorded(self, device: str, state: Arrays, extra: Arrays, params: Any, body: str | None = None):
+        """:meth:`launch`'s launch on these arrays, recorded but not run: a ``wp.Launch`` (``wp.launch(...,
+        record_cmd=True)``): :meth:`replay` runs it from any step without packing the arrays and
+        the map's coefficients again, the Python work of a launch that a run stopped at every
+        history row pays once per stop (``benchmarks/README.md``, "launch_cost.py")."""
+        body = self._body(device, body)
+        dim = state[0].shape[0] if body == "point" else launch_dim(state[0].shape[0])
+        if body == "cpu":
+            check_cpu_isa_runs()  # a setting fixed for the process: once per recording will do
+        return wp.launch(
+            self.kernel(device, body, params.table),
+            dim=dim,
+            inputs=[_fill(State(), state), _fill(self.variant.arrays(), extra), 0, 0, coefficients(params)],
+            device=device,
+            record_cmd=True,
+        )
+
+    def replay(self, launch: wp.Launch, step0: int, steps: int) -> None:
+        """Run a :meth:`recorded` launch for ``steps`` iterations from global step ``step0``."""
         if not 0 <= steps <= MAX_LAUNCH_STEPS:
             raise ValueError(f"steps = {steps} is outside the allowed range 0 <= steps <= {MAX_LAUNCH_STEPS}")
         if not 0 <= step0 < 2**63 - steps:
             raise ValueError(f"step0 = {step0} is outside the allowed range 0 <= step0 < 2^63 - steps")
-        body = self._body(device, body)
-        arguments = [_fill(State(), state), _fill(self.variant.arrays(), extra), step0, steps]
-        dim = state[0].shape[0] if body == "point" else launch_dim(state[0].shape[0])
-        if body == "cpu":
-            check_cpu_isa_runs()
-        wp.launch(
-            self.kernel(device, body, params.table),
-            dim=dim,
-            inputs=[*arguments, coefficients(params)],
-            device=device,
-        )
+        launch.set_param_at_index_from_ctype(2, step0)  # the kernel's (state, extra, step0, steps, p)
+        launch.set_param_at_index_from_ctype(3, steps)
+        launch.launch()
 
 
 def _fill(struct: Any, arrays: Sequence[wp.array]) -> Any:
