@@ -12,7 +12,7 @@ column and the docs. Files written before this module named the sampler ``sample
 the default threshold as NaN; :meth:`RunSpec.from_attrs` still reads them (:data:`LEGACY_NAMES`).
 
 "Default" is ``None``: a setting whose default depends on the run (``threads``: one per core;
-``chunk_steps``: about 2.5e8 point-steps; ``threshold``: the indicator's own, for the FTLE
+``chunk_steps``: about 1e9 point-steps; ``threshold``: the indicator's own, for the FTLE
 :func:`warpratchet.observables.default_lyapunov_threshold` of ``steps``) is ``None`` in the API,
 ``null`` in JSON and an absent attribute in HDF5.
 
@@ -232,7 +232,7 @@ _SETTINGS: dict[str, tuple[Any, Setting]] = {
     "chunk_steps": (
         None,
         Setting(
-            "steps between observer calls (default: ~2.5e8 point-steps; with --out, the "
+            "steps between observer calls (default: ~1e9 point-steps; with --out, the "
             "archive's, long enough that its rows cost under 0.5 percent of the run)",
             int,
             _count(1, MAX_CHUNK_STEPS),
@@ -386,7 +386,7 @@ class RunSpec(_Spec):
     device : str
         Warp device (``"cpu"``, ``"cuda:0"``, ...).
     chunk_steps : int or None
-        Steps between observer calls, ``1..MAX_CHUNK_STEPS``; ``None``: about 2.5e8
+        Steps between observer calls, ``1..MAX_CHUNK_STEPS``; ``None``: about 1e9
         point-steps. Results do not depend on it.
     knots, values : str or None
         Another force instead of ``b1, b2`` (:meth:`warpratchet.force.Force.from_knots`): its

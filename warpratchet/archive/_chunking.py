@@ -12,7 +12,7 @@ import math
 import time
 from collections.abc import Iterable
 
-from ..ensemble import STATE_FIELDS, Ensemble, Observer, default_chunk_steps
+from ..ensemble import STATE_FIELDS, Ensemble, Observer
 from ..errors import ParameterError, check_count, check_optional
 from ..limits import MAX_STEP
 from ..observables import summarize
@@ -22,6 +22,7 @@ __all__ = [
     "CHECKPOINT_CHUNKS",
     "CHECKPOINT_SECONDS",
     "MIN_ARCHIVE_CHUNK_STEPS",
+    "ARCHIVE_CHUNK_POINT_STEPS",
     "ROW_SHARE",
     "schedule",
     "sink_min_chunk_steps",
@@ -37,6 +38,10 @@ CHECKPOINT_CHUNKS = 8
 #: tens of point-steps per point (the summary of Eq. An and the FTLE), so chunks of >= 1024 steps
 #: keep it to a few percent. :func:`sink_min_chunk_steps` measures instead.
 MIN_ARCHIVE_CHUNK_STEPS = 1024
+#: Point-steps of an archive's default chunk (:func:`schedule`): a series row every few tenths of
+#: a second of one core, and a checkpoint every :data:`CHECKPOINT_CHUNKS` of them, so that a
+#: kill -9 loses little.
+ARCHIVE_CHUNK_POINT_STEPS = 250_000_000
 #: Largest share of the kernel time a series row may cost at the default chunk length: 0.5%,
 #: so that the kernel may get several times faster before the archive costs more than a 5%
 #: budget (benchmarks/archive_overhead.py).
@@ -149,8 +154,8 @@ def schedule(
         Ensemble size.
     chunk_steps : int, optional
         Steps per chunk; must divide ``snapshot_every`` and ``checkpoint_every`` when given.
-        Default: the largest divisor of their gcd not above ``max(default_chunk_steps(points),
-        min_chunk_steps)``.
+        Default: the largest divisor of their gcd not above ``max(ARCHIVE_CHUNK_POINT_STEPS /
+        points, min_chunk_steps)`` (at least 16 and at most 10^5 steps before ``min_chunk_steps``).
     snapshot_every : int
         Steps between snapshots (0: none).
     checkpoint_every : int, optional
@@ -186,7 +191,8 @@ def schedule(
                 f"chunk_steps = {chunk_steps} must divide {listed} (chunk ends must land on them)"
             )
     else:
-        cap = max(default_chunk_steps(points), check_count("min_chunk_steps", min_chunk_steps, 1))
+        own = min(100_000, max(16, ARCHIVE_CHUNK_POINT_STEPS // points))
+        cap = max(own, check_count("min_chunk_steps", min_chunk_steps, 1))
         if intervals:
             g = math.gcd(*intervals.values())
             chunk_steps = _largest_divisor_at_most(g, cap)
