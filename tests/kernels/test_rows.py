@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from warpratchet import kernels
+from warpratchet.observables import momentum_gain
 
 
 def _bits(values) -> bytes:
@@ -102,3 +103,41 @@ def test_the_gates_verdict_is_kept_per_machine_and_read_back(monkeypatch, tmp_pa
     monkeypatch.setattr(_rows, "_available", None)
     kept.write_text("False")  # a machine whose NumPy the transcription does not match
     assert kernels.row_pass_available() is False  # (monkeypatch restores the process's verdict)
+
+
+def test_the_pass_gives_momentum_gains_bits_at_every_winding():
+    """The row pass converts windings to doubles in vectors where every |w| < 2^51 in a block and
+    one by one elsewhere: both give ``momentum_gain``'s bits, at the edges of that range, at
+    windings far past it and at -0.0, and the gathers and least FTLE are NumPy's."""
+    rng = np.random.default_rng(51)
+    blocks = 12  # of the pass's 256 points: some with huge windings, most without
+    n = 256 * blocks + 37
+    winding = rng.integers(-1000, 1000, n)
+    # one past the range alone in a block, above and below (a block of negative windings); far
+    # past it; its very edges (the vector path)
+    winding[256 * 5 : 256 * 6] = -rng.integers(1, 1000, 256)
+    edges = {1: [2**51 + 1], 3: [2**51, 2**52 + 3], 5: [-(2**51) - 1], 7: [-(2**53) + 1]}
+    edges[11] = [-(2**51), 2**51 - 1]
+    for b, values in edges.items():
+        winding[256 * b + rng.choice(256, len(values), replace=False)] = values
+    winding[-3:] = [2**51 + 5, -(2**51), 7]  # the last, partial block
+    state = {
+        "winding": winding,
+        "q": rng.uniform(0.0, 1.0, n),
+        "p0": rng.uniform(-3.0, 3.0, n) * 10.0 ** rng.integers(0, 6, n),
+        "dx": np.ones(n),
+        "dp": np.zeros(n),
+        "log_stretch": np.zeros(n),
+    }
+    state["q"][:5] = -0.0
+    ftle = rng.uniform(0.0, 0.2, n)
+    step, threshold = 321, 0.1
+    gain = np.empty(n)
+    done = kernels.RowPass(state, ftle)([(0, n)], gain, step, threshold, threshold / 10, threshold * 10)
+    assert _bits(gain) == _bits(momentum_gain(state))
+    chaotic = ftle > threshold
+    a_n = momentum_gain(state) / step
+    assert _bits(done[0][0]) == _bits(ftle[chaotic])
+    assert _bits(done[1][0]) == _bits(a_n[chaotic])
+    assert _bits(done[2][0]) == _bits(a_n[(ftle > threshold / 10) & (ftle < threshold * 10)])
+    assert done[3] == ftle[chaotic].min() and done[4]

@@ -145,7 +145,7 @@ wp::int64 m = lo;
 wp::int64 k = lo;
 double least = INFINITY;
 int status = 0;
-double f_block[{BLOCK}], a_block[{BLOCK}];
+double f_block[{BLOCK}], a_block[{BLOCK}], w_block[{BLOCK}];
 for (int leaf = 0; leaf < leaves; ++leaf) {{
 const wp::int64 hi = bounds.data[leaf + 1];
 for (wp::int64 first = bounds.data[leaf]; first < hi; first += {BLOCK}) {{
@@ -157,33 +157,77 @@ for (wp::int64 first = bounds.data[leaf]; first < hi; first += {BLOCK}) {{
         covered = glibc_ftle_block(dx + first, dp + first, log_stretch + first, step, f_block, size);
     }}
     if (!covered) status |= {NOT_COVERED};
-    int finite = 1;
-    for (int j = 0; j < size; ++j) {{
-        /* momentum_gain's operations, in its order; winding is exact as a double */
-        const wp::int64 i = first + j;
-        const double p = p0[i];
-        const double frac = p - __builtin_floor(p);
-        const double rest = q[i] - frac;
-        const double g = (double)winding[i] + rest;
-        gain[i] = g;
-        const double a = g / step;
-        a_block[j] = a;
-        /* finite: x - x is 0 for a finite x, NaN otherwise */
-        const double f = f_block[j];
-        finite &= ((f - f) == 0.0) & ((a - a) == 0.0);
+    /* winding as a double: exact for any |w| < 2^53; where every |w| < 2^51 (momenta below
+       ~2 x 10^15), as (2^52 + 2^51 + w) - (2^52 + 2^51), exact too, and in vectors without
+       AVX-512's int64 conversion */
+    wp::uint64 spread = 0;
+    for (int j = 0; j < size; ++j) spread |= (wp::uint64)(winding[first + j] + (1LL << 51));
+    if (spread >> 52) {{
+        for (int j = 0; j < size; ++j) w_block[j] = (double)winding[first + j];
+    }} else {{
+        for (int j = 0; j < size; ++j) {{
+            const wp::int64 bits = winding[first + j] + 0x4338000000000000LL;
+            w_block[j] = __builtin_bit_cast(double, bits) - 6755399441055744.0;
+        }}
     }}
-    if (!finite) status |= {NOT_FINITE};
+    const double* __restrict pb = p0 + first;
+    const double* __restrict qb = q + first;
+    double* __restrict gb = gain + first;
+    const double* __restrict fb = f_block;
+    double* __restrict ab = a_block;
+    const double* __restrict wb = w_block;
     for (int j = 0; j < size; ++j) {{
-        const double f = f_block[j];
-        const double a = a_block[j];
-        const bool chaotic = f > threshold;
-        chaotic_ftle[m] = f;
-        chaotic_acc[m] = a;
-        m += chaotic ? 1 : 0;
-        least = (chaotic && f < least) ? f : least;
-        const bool ambiguous = (f > low) && (f < high);
-        ambiguous_acc[k] = a;
-        k += ambiguous ? 1 : 0;
+        /* momentum_gain's operations, in its order */
+        const double p = pb[j];
+        const double frac = p - __builtin_floor(p);
+        const double rest = qb[j] - frac;
+        const double g = wb[j] + rest;
+        gb[j] = g;
+        ab[j] = g / step;
+    }}
+    /* finite: x - x is 0 for a finite x, NaN otherwise; the least chaotic FTLE in four chains
+       (no value is NaN where every value is finite, and the result is used only then) */
+    int bad = 0;
+    double l0 = INFINITY, l1 = INFINITY, l2 = INFINITY, l3 = INFINITY;
+    int j = 0;
+    for (; j + 4 <= size; j += 4) {{
+        for (int u = 0; u < 4; ++u) {{
+            const double f = fb[j + u];
+            const double a = ab[j + u];
+            bad |= (int)!((f - f) == 0.0) | (int)!((a - a) == 0.0);
+        }}
+        const double f0 = fb[j] > threshold ? fb[j] : INFINITY;
+        const double f1 = fb[j + 1] > threshold ? fb[j + 1] : INFINITY;
+        const double f2 = fb[j + 2] > threshold ? fb[j + 2] : INFINITY;
+        const double f3 = fb[j + 3] > threshold ? fb[j + 3] : INFINITY;
+        l0 = f0 < l0 ? f0 : l0;
+        l1 = f1 < l1 ? f1 : l1;
+        l2 = f2 < l2 ? f2 : l2;
+        l3 = f3 < l3 ? f3 : l3;
+    }}
+    for (; j < size; ++j) {{
+        const double f = fb[j];
+        const double a = ab[j];
+        bad |= (int)!((f - f) == 0.0) | (int)!((a - a) == 0.0);
+        const double c = f > threshold ? f : INFINITY;
+        l0 = c < l0 ? c : l0;
+    }}
+    if (bad) status |= {NOT_FINITE};
+    l0 = l1 < l0 ? l1 : l0;
+    l2 = l3 < l2 ? l3 : l2;
+    l0 = l2 < l0 ? l2 : l0;
+    least = l0 < least ? l0 : least;
+    double* __restrict c_ftle = chaotic_ftle;
+    double* __restrict c_acc = chaotic_acc;
+    double* __restrict a_acc = ambiguous_acc;
+    for (int j = 0; j < size; ++j) {{
+        const double f = fb[j];
+        const double a = ab[j];
+        c_ftle[m] = f;
+        c_acc[m] = a;
+        m += f > threshold ? 1 : 0;
+        a_acc[k] = a;
+        k += (f > low) & (f < high) ? 1 : 0;
     }}
 }}
 /* the leaf's gains are still in cache: their sum, as np.add.reduce gives it */
