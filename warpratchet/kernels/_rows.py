@@ -76,12 +76,14 @@ RowOutputs = arrays_struct(
 _TERMS_CPU = {
     "value": "v",
     "square": "((v - center) * (v - center))",
-    "absolute": "__builtin_fabs(v - center)",
+    "absolute": "__builtin_elementwise_abs(v - center)",
 }
 
 
 def _pairwise_source(term: str, expression: str) -> str:
-    # One function per term, so that the mode is no branch in the loops (which clang vectorises).
+    # One function per term, so that the mode is no branch in the loops. The 8 accumulators are
+    # two vectors of 4 (accumulator j is lane j % 4 of vector j / 4), each lane adding what its
+    # accumulator adds, in its order; the expressions work on a double or a vector alike.
     # ``(v - center) * (v - center)`` is one subtraction rounded, then its square: NumPy's order.
     return f"""
 static double {term}(const double* a, wp::int64 n, double center) {{
@@ -91,12 +93,20 @@ static double {term}(const double* a, wp::int64 n, double center) {{
         return res;
     }}
     if (n <= 128) {{
-        double r[8];
-        for (int j = 0; j < 8; ++j) {{ const double v = a[j]; r[j] = {expression}; }}
+        typedef double lanes __attribute__((ext_vector_type(4)));
+        lanes v, r0, r1;
+        __builtin_memcpy(&v, a, sizeof(lanes));
+        r0 = {expression};
+        __builtin_memcpy(&v, a + 4, sizeof(lanes));
+        r1 = {expression};
         wp::int64 i = 8;
-        for (; i < n - (n % 8); i += 8)
-            for (int j = 0; j < 8; ++j) {{ const double v = a[i + j]; r[j] += {expression}; }}
-        double res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for (; i < n - (n % 8); i += 8) {{
+            __builtin_memcpy(&v, a + i, sizeof(lanes));
+            r0 += {expression};
+            __builtin_memcpy(&v, a + i + 4, sizeof(lanes));
+            r1 += {expression};
+        }}
+        double res = ((r0[0] + r0[1]) + (r0[2] + r0[3])) + ((r1[0] + r1[1]) + (r1[2] + r1[3]));
         for (; i < n; ++i) {{ const double v = a[i]; res += {expression}; }}
         return res;
     }}
