@@ -20,7 +20,7 @@ from warpratchet import MapParams
 from warpratchet.archive import open_archive, verify_archive
 from warpratchet.transport import CARRY_FIELDS, TransportEnsemble
 
-POINTS, SEED, STEPS = 1500, 7, 60_000
+POINTS, SEED, STEPS = 1500, 7, 24_000  # 240 chunks: killed after 40
 RUN = ["run", *MAP_FLAGS, "--points", str(POINTS), "--seed", str(SEED), "--steps", str(STEPS)]
 RUN += ["--chunk-steps", "100", "--checkpoint-every", "500", "--quiet", "--json", "--transport"]
 
