@@ -108,21 +108,28 @@ def test_runs_open_for_a_million_steps_close_exactly(body):
 
 @pytest.mark.parametrize("init", ["strip", "torus"])
 def test_counts_do_not_depend_on_threads_chunking_or_interruption(init):
-    """1, 2 and 3 threads, chunks of 1 to 10^4 steps, a run split in three: the same counts."""
+    """1, 2 and 3 threads, chunks of 1 to 10^4 steps, a run split in three: the same counts.
+
+    The chunks of one step cover the first 1000 steps (a launch per step costs milliseconds): every
+    sampled spread step up to 1000 and returns of 64 steps and more span many launches there."""
     p = MapParams(2.99, 0.25, 0.07)
 
-    def final(threads, pieces, chunk):
+    def final(threads, pieces, chunks):
         ens = TransportEnsemble.sample(p, 1001, init, seed=5, threads=threads)
-        for steps in pieces:
+        for steps, chunk in zip(pieces, chunks, strict=True):
             ens.run(steps, chunk_steps=chunk)
         return ens.transport_state(), ens.state()
 
-    transport, state = final(1, [4000], 10_000)
+    transport, state = final(1, [4000], [10_000])
     assert transport.counts[0, 6:].sum() > 0  # returns of 64 steps and more: the trackers' int64 parts
     assert transport.spread_steps.tolist()[-3:] == [1778, 2371, 3162]  # round(10^(k/8)), any target
-    for threads, pieces, chunk in ((2, [4000], 64), (3, [200, 3800], 1), (2, [1, 999, 3000], 333)):
-        other, other_state = final(threads, pieces, chunk)
-        _assert_same_transport(other, transport, f"threads={threads} chunk={chunk} pieces={pieces}")
+    for threads, pieces, chunks in (
+        (2, [4000], [64]),
+        (3, [1000, 3000], [1, 997]),
+        (2, [1, 999, 3000], [333] * 3),
+    ):
+        other, other_state = final(threads, pieces, chunks)
+        _assert_same_transport(other, transport, f"threads={threads} chunks={chunks} pieces={pieces}")
         for name in state:
             np.testing.assert_array_equal(other_state[name], state[name], err_msg=name)
 

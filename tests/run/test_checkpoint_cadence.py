@@ -12,7 +12,7 @@ import json
 
 import h5py
 import pytest
-from support import MAP_FLAGS, cli, same_state
+from support import MAP_FLAGS, cli, refused, same_state
 
 from warpratchet import Ensemble, MapParams, Observer
 from warpratchet.archive import ArchiveSink, _writer, open_archive
@@ -98,7 +98,8 @@ def test_a_cadence_outside_its_range_is_refused(tmp_path, value):
     assert not (tmp_path / "a.h5").exists()
 
 
-def test_the_cli_flag_sets_the_cadence_and_needs_out(tmp_path):
+def test_the_cli_flag_sets_the_cadence_and_needs_out(tmp_path, capsys):
+    """The run in a fresh process, the refusals in this one."""
     path = tmp_path / "r.h5"
     proc = cli(
         "run",
@@ -115,35 +116,38 @@ def test_the_cli_flag_sets_the_cadence_and_needs_out(tmp_path):
     assert proc.returncode == 0, proc.stderr
     with open_archive(path) as arc:
         assert arc.settings["checkpoint_seconds"] == 5.0
-    proc = cli("run", *MAP_FLAGS, "--points", "100", "--steps", "200", "--checkpoint-seconds", "5")
-    assert proc.returncode == 2 and "--checkpoint-seconds needs --out FILE" in proc.stderr
-    proc = cli(
-        "run", *MAP_FLAGS, "--points", "100", "--out", str(tmp_path / "s.h5"), "--checkpoint-seconds", "0"
+    line = refused(
+        capsys, ["run", *MAP_FLAGS, "--points", "100", "--steps", "200", "--checkpoint-seconds", "5"]
     )
-    assert proc.returncode == 2 and "checkpoint_seconds = 0.0 is outside the allowed range" in proc.stderr
-    assert "Traceback" not in proc.stderr and not (tmp_path / "s.h5").exists()
+    assert "--checkpoint-seconds needs --out FILE" in line
+    line = refused(
+        capsys,
+        ["run", *MAP_FLAGS, "--points", "100", "--out", str(tmp_path / "s.h5"), "--checkpoint-seconds", "0"],
+    )
+    assert "checkpoint_seconds = 0.0 is outside the allowed range" in line
+    assert not (tmp_path / "s.h5").exists()
 
 
-def test_resume_to_the_step_an_archive_holds_reports_it_and_exits_0(tmp_path):
-    """``resume --steps N`` again on an archive at N is idempotent, as ``run --out`` is."""
+def test_resume_to_the_step_an_archive_holds_reports_it_and_exits_0(tmp_path, capsys):
+    """``resume --steps N`` again on an archive at N is idempotent, as ``run --out`` is (the run and
+    the first resume in fresh processes, the second resume and the refusal in this one)."""
+    from warpratchet.cli import main
+
     path = tmp_path / "r.h5"
     assert cli("run", *MAP_FLAGS, "--points", "200", "--steps", "600", "--out", str(path)).returncode == 0
     first = cli("resume", str(path), "--steps", "900", "--json")
     assert first.returncode == 0, first.stderr
     before = path.read_bytes()
-    again = cli("resume", str(path), "--steps", "900", "--json")
-    assert again.returncode == 0, again.stderr
-    assert again.stderr.strip() == f"warpratchet: {path} holds all 900 steps already: its report, nothing run"
+    code, again = main(["resume", str(path), "--steps", "900", "--json"]), capsys.readouterr()
+    assert code == 0, again.err
+    assert again.err.strip() == f"warpratchet: {path} holds all 900 steps already: its report, nothing run"
     assert path.read_bytes() == before  # nothing touched
-    report, original = json.loads(again.stdout), json.loads(first.stdout)
+    report, original = json.loads(again.out), json.loads(first.stdout)
     assert (
         report["steps"] == 900 and report["A"] == original["A"] and report["history"] == original["history"]
     )
-    behind = cli("resume", str(path), "--steps", "300")
-    assert (
-        behind.returncode == 2
-        and "--steps 300 is behind the archive's checkpoint at step 900" in behind.stderr
-    )
+    behind = refused(capsys, ["resume", str(path), "--steps", "300"])
+    assert "--steps 300 is behind the archive's checkpoint at step 900" in behind
 
 
 def test_inspect_reports_progress_at_the_checkpoint_and_at_the_newest_row(tmp_path):

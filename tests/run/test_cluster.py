@@ -298,7 +298,7 @@ def test_the_benchmark_runs_and_its_runs_are_identical():
 
     report = quick_benchmark("cluster_scaling.py")
     assert report["identical"] and [r["workers"] for r in report["rows"]] == [None, 1, 2]
-    assert [m["shards"] for m in report["merge"]] == [1, 4, 16, 64, 256, 1024]
+    assert [m["shards"] for m in report["merge"]] == [1, 4, 16, 64]  # --quick: up to 64 shards
     assert set(report["merge_projected_seconds"]) == {"100", "1000"}
 
 
@@ -396,6 +396,31 @@ def test_a_merge_over_blocks_cut_by_the_shards_equals_the_single_machine(small_b
         assert shards == 1 or any(lo % 300 for lo, _ in bounds)  # a block shared by two shards
         merged = ShardedRun(SPEC, [run_shard(SPEC, lo, hi, transport) for lo, hi in bounds], transport)
         check_merged(merged, reference, transport)
+
+
+def test_a_merge_of_shards_far_smaller_than_a_block_equals_the_single_machine(small_blocks):
+    """1000 shards of 2 points, each block of 300 points cut by 150 of them: the records of one
+    run of the whole ensemble, sliced (the merge's tasks see the numbers of 1000 shards' runs;
+    the block subsample is all in the first shard), merged here, without a cluster."""
+    from dataclasses import replace
+
+    reference = single_machine(False)
+    whole = run_shard(SPEC, 0, SPEC.points)
+    records = [
+        replace(whole, lo=lo, hi=hi, gain=whole.gain[:, lo:hi], stretch=whole.stretch[:, lo:hi])
+        if lo == 0
+        else replace(
+            whole,
+            lo=lo,
+            hi=hi,
+            gain=whole.gain[:, lo:hi],
+            stretch=whole.stretch[:, lo:hi],
+            block_gain=whole.block_gain[:, :0],
+            block_ftle=whole.block_ftle[:, :0],
+        )
+        for lo, hi in shard_bounds(SPEC.points, 1000)
+    ]
+    check_merged(ShardedRun(SPEC, records, False), reference, False)
 
 
 def test_the_merge_gathers_numbers_per_block_and_row_not_per_point():
