@@ -224,9 +224,12 @@ def test_end_to_end_benchmark_runs_and_reports_the_kernels_numbers():
 
 def test_launch_cost_benchmark_splits_a_launch_into_fixed_and_per_step_parts():
     """Smoke test of ``benchmarks/launch_cost.py --quick`` (structure; no timing assertions): one
-    row per slice size, and the fixed and per-step parts add up to the one-step launch."""
+    row per slice size and way of launching (packed each time, or a recorded launch replayed), and
+    the fixed and per-step parts add up to the one-step launch."""
     report = quick_benchmark("launch_cost.py")
-    assert [row["points"] for row in report["rows"]] == [1_024, 16_384]
+    assert [(row["points"], row["launch"]) for row in report["rows"]] == [
+        (size, way) for size in (1_024, 16_384) for way in ("packed", "replayed")
+    ]
     for row in report["rows"]:
         assert row["launch_1_step_s"] > 0 and row["launch_8_steps_s"] > 0
         parts = (row["fixed_ns_per_point"] + row["step_ns_per_point"]) * row["points"] * 1e-9
