@@ -64,19 +64,19 @@ def default_threads() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def default_chunk_steps(points: int) -> int:
-    """Steps per chunk of a run: about 1e9 point-steps (a second or so of one core), between 16
-    and 10^5 steps.
+def default_chunk_steps(points: int, point_steps: int = 1_000_000_000) -> int:
+    """Steps per chunk of a run: about ``point_steps`` point-steps (by default 1e9, a second or so
+    of one core), between 16 and 10^5 steps.
 
     A chunk end is a launch boundary: every point's state is stored and loaded once more, and
     every observer is called. The observers that must see a given step ask for it themselves
     (``next_stop``: a history's rows, a recording's frames), so a run's own chunk ends only move
     its progress bar and let Ctrl-C stop it: a second or so apart is often enough, and few enough
     that they cost little beside the kernel (the cost of a stop: benchmarks/README.md). An
-    archive writes a row at each of its chunk ends and sets shorter chunks of its own
+    archive writes a row at each of its chunk ends and asks for shorter chunks
     (:func:`warpratchet.archive.schedule`).
     """
-    return int(min(100_000, max(16, 1_000_000_000 // max(points, 1))))
+    return int(min(100_000, max(16, point_steps // max(points, 1))))
 
 
 class Observer:

@@ -12,7 +12,7 @@ import math
 import time
 from collections.abc import Iterable
 
-from ..ensemble import STATE_FIELDS, Ensemble, Observer
+from ..ensemble import STATE_FIELDS, Ensemble, Observer, default_chunk_steps
 from ..errors import ParameterError, check_count, check_optional
 from ..limits import MAX_STEP
 from ..observables import summarize
@@ -154,8 +154,8 @@ def schedule(
         Ensemble size.
     chunk_steps : int, optional
         Steps per chunk; must divide ``snapshot_every`` and ``checkpoint_every`` when given.
-        Default: the largest divisor of their gcd not above ``max(ARCHIVE_CHUNK_POINT_STEPS /
-        points, min_chunk_steps)`` (at least 16 and at most 10^5 steps before ``min_chunk_steps``).
+        Default: the largest divisor of their gcd not above ``max(default_chunk_steps(points,
+        ARCHIVE_CHUNK_POINT_STEPS), min_chunk_steps)``.
     snapshot_every : int
         Steps between snapshots (0: none).
     checkpoint_every : int, optional
@@ -191,7 +191,7 @@ def schedule(
                 f"chunk_steps = {chunk_steps} must divide {listed} (chunk ends must land on them)"
             )
     else:
-        own = min(100_000, max(16, ARCHIVE_CHUNK_POINT_STEPS // points))
+        own = default_chunk_steps(points, ARCHIVE_CHUNK_POINT_STEPS)
         cap = max(own, check_count("min_chunk_steps", min_chunk_steps, 1))
         if intervals:
             g = math.gcd(*intervals.values())

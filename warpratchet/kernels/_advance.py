@@ -282,10 +282,10 @@ class AdvanceKernel:
         self.replay(self.recorded(device, state, extra, params, body), step0, steps)
 
     def recorded(self, device: str, state: Arrays, extra: Arrays, params: Any, body: str | None = None):
-        """:meth:`launch`'s launch on these arrays, recorded but not run: a ``wp.Launch`` (``wp.launch(...,
-        record_cmd=True)``): :meth:`replay` runs it from any step without packing the arrays and
-        the map's coefficients again, the Python work of a launch that a run stopped at every
-        history row pays once per stop (``benchmarks/README.md``, "launch_cost.py")."""
+        """The launch :meth:`launch` would make on these arrays, recorded and not run: a ``wp.Launch``
+        (Warp's ``wp.launch(..., record_cmd=True)``). :meth:`replay` runs it from any step without
+        packing the arrays and the map's coefficients again, the Python work that a run would
+        otherwise pay at every stop (``benchmarks/README.md``, "launch_cost.py")."""
         body = self._body(device, body)
         dim = state[0].shape[0] if body == "point" else launch_dim(state[0].shape[0])
         if body == "cpu":
