@@ -44,6 +44,7 @@ from .observables import (
     SUMMARY_CHUNK,
     TREE_LEAF,
     Summary,
+    _pieces,
     lyapunov_threshold,
     summarize,
     summarize_with_variance,
@@ -180,7 +181,6 @@ class Ensemble:
         self._views_live = wp.get_device(self.device).is_cpu
         self._variance: tuple | None = None  # (step, variance of p_n - p_0) of the last summary
         self._recorded: dict[tuple[int, int], tuple] = {}  # shard (lo, hi): (what it uses, its launch)
-        self._shard_bounds: tuple[int, list[tuple[int, int]]] | None = None  # (threads, shards)
 
     @classmethod
     def bytes_per_point(cls) -> int:
@@ -319,11 +319,7 @@ class Ensemble:
 
     def _shards(self) -> list[tuple[int, int]]:
         """The points ``(lo, hi)`` of each CPU thread's launch: :attr:`threads` near-equal shards."""
-        if self._shard_bounds is None or self._shard_bounds[0] != self.threads:
-            bounds = [int(b) for b in np.linspace(0, self.points, self.threads + 1).astype(int)]
-            shards = [(lo, hi) for lo, hi in zip(bounds[:-1], bounds[1:], strict=True) if hi > lo]
-            self._shard_bounds = self.threads, shards
-        return self._shard_bounds[1]
+        return [(part.start, part.stop) for part in _pieces(range(self.points), self.threads)]
 
     def _advance(self, steps: int, pool: ThreadPoolExecutor | None) -> None:
         self._summaries = {}  # the state moves on

@@ -10,7 +10,7 @@ import ctypes
 import math
 import threading
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from typing import Any
 
@@ -424,8 +424,9 @@ def _contiguous(parts: list[np.ndarray], buffers: dict, name: str) -> np.ndarray
     return np.concatenate(parts, out=_buffer(buffers, name, size))
 
 
-def _pieces(items: list, count: int) -> list[list]:
-    """``items`` cut into at most ``count`` contiguous, non-empty pieces of near-equal length."""
+def _pieces(items: Sequence, count: int) -> list[Sequence]:
+    """``items`` (a list, a range) cut into at most ``count`` contiguous, non-empty pieces of
+    near-equal length."""
     cuts = np.linspace(0, len(items), min(count, len(items)) + 1).astype(int)
     return [items[a:b] for a, b in zip(cuts[:-1], cuts[1:], strict=True) if b > a]
 

@@ -65,16 +65,15 @@ def default_threads() -> int:
 
 
 def default_chunk_steps(points: int, point_steps: int = 1_000_000_000) -> int:
-    """Steps per chunk of a run: about ``point_steps`` point-steps (by default 1e9, a second or so
-    of one core), between 16 and 10^5 steps.
+    """Steps per chunk of a run: about ``point_steps`` point-steps (by default 1e9), between 16
+    and 10^5 steps.
 
     A chunk end is a launch boundary: every point's state is stored and loaded once more, and
     every observer is called. The observers that must see a given step ask for it themselves
     (``next_stop``: a history's rows, a recording's frames), so a run's own chunk ends only move
-    its progress bar and let Ctrl-C stop it: a second or so apart is often enough, and few enough
-    that they cost little beside the kernel (the cost of a stop: benchmarks/README.md). An
-    archive writes a row at each of its chunk ends and asks for shorter chunks
-    (:func:`warpratchet.archive.schedule`).
+    its progress bar and let Ctrl-C stop it: they can be few, so that they cost little beside the
+    kernel (what a chunk and a stop take on a CPU: benchmarks/README.md). An archive writes a row
+    at each of its chunk ends and asks for shorter chunks (:func:`warpratchet.archive.schedule`).
     """
     return int(min(100_000, max(16, point_steps // max(points, 1))))
 

@@ -38,9 +38,9 @@ CHECKPOINT_CHUNKS = 8
 #: tens of point-steps per point (the summary of Eq. An and the FTLE), so chunks of >= 1024 steps
 #: keep it to a few percent. :func:`sink_min_chunk_steps` measures instead.
 MIN_ARCHIVE_CHUNK_STEPS = 1024
-#: Point-steps of an archive's default chunk (:func:`schedule`): a series row every few tenths of
-#: a second of one core, and a checkpoint every :data:`CHECKPOINT_CHUNKS` of them, so that a
-#: kill -9 loses little.
+#: Point-steps of an archive's default chunk (:func:`schedule`): a quarter of a plain run's, so
+#: that the series has rows at a finer cadence and a checkpoint (every :data:`CHECKPOINT_CHUNKS`
+#: chunks) is never far behind, and a kill -9 loses little.
 ARCHIVE_CHUNK_POINT_STEPS = 250_000_000
 #: Largest share of the kernel time a series row may cost at the default chunk length: 0.5%,
 #: so that the kernel may get several times faster before the archive costs more than a 5%
