@@ -20,6 +20,7 @@ Usage::
     python benchmarks/end_to_end.py                      # 10^6 points x 6000 steps, 3 rounds, 1 and 2 threads
     python benchmarks/end_to_end.py --rounds 5 --json
     python benchmarks/end_to_end.py --quick --json       # smoke test: 20 000 points x 600 steps
+    python benchmarks/end_to_end.py --device cuda:0      # on a GPU (one launch per chunk, no threads)
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ import json
 import statistics
 import sys
 
+import warp as wp
 from throughput_contenders import Clock, Timing
 
 from warpratchet import Ensemble, MapParams
@@ -42,10 +44,13 @@ PARAMS = MapParams(K=3.0, b1=0.1, b2=0.01)
 INIT, SEED = "strip", 0  # the CLI's defaults
 
 
-def run_cli(params: MapParams, points: int, steps: int, threads: int) -> tuple[dict, Timing]:
+def run_cli(
+    params: MapParams, points: int, steps: int, threads: int, device: str = "cpu"
+) -> tuple[dict, Timing]:
     """``warpratchet run ... --json --quiet`` in this process: its report and its wall and CPU seconds."""
     argv = ["run", "--K", repr(params.K), "--b1", repr(params.b1), "--b2", repr(params.b2)]
-    argv += ["--points", str(points), "--steps", str(steps), "--threads", str(threads), "--json", "--quiet"]
+    argv += ["--points", str(points), "--steps", str(steps), "--threads", str(threads)]
+    argv += ["--device", device, "--json", "--quiet"]
     out = io.StringIO()
     with Clock() as clock, contextlib.redirect_stdout(out):
         status = cli_main(argv)
@@ -54,10 +59,11 @@ def run_cli(params: MapParams, points: int, steps: int, threads: int) -> tuple[d
     return json.loads(out.getvalue()), clock.timing
 
 
-def _kernel(points: int, steps: int, threads: int) -> tuple[Ensemble, Timing]:
+def _kernel(points: int, steps: int, threads: int, device: str = "cpu") -> tuple[Ensemble, Timing]:
     with Clock() as clock:
-        ens = Ensemble.sample(PARAMS, points, init=INIT, seed=SEED, threads=threads)
+        ens = Ensemble.sample(PARAMS, points, init=INIT, seed=SEED, threads=threads, device=device)
         ens.run(steps, chunk_steps=steps)
+        wp.synchronize_device(device)
     return ens, clock.timing
 
 
@@ -75,14 +81,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--steps", type=positive_int, default=None, help="iterations (default 6000)")
     parser.add_argument("--rounds", type=positive_int, default=3, help="alternating rounds (default 3)")
     parser.add_argument("--quick", action="store_true", help="20 000 points x 600 steps, 1 round")
+    parser.add_argument("--device", default="cpu", help="Warp device, e.g. cuda:0 (default cpu)")
     parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
     args = parser.parse_args(argv)
     points = args.points or (20_000 if args.quick else 1_000_000)
     steps = args.steps or (600 if args.quick else 6000)
     rounds = 1 if args.quick else args.rounds
-    Ensemble.sample(PARAMS, 64, threads=1).run(16)  # compile (or load) the kernel outside the timings
+    try:  # compile (or load) the kernel outside the timings
+        Ensemble.sample(PARAMS, 64, threads=1, device=args.device).run(16)
+    except ValueError as error:  # e.g. device = 'cuda:7' is not available (Warp sees: cpu)
+        parser.error(str(error))
+    on_cpu = wp.get_device(args.device).is_cpu
     results, equal = [], True
-    for threads in sorted({1, default_threads()}):
+    for threads in sorted({1, default_threads()}) if on_cpu else [1]:
         wall, cpu = [], []
         for r in range(rounds):
             order = ("run", "kernel") if r % 2 == 0 else ("kernel", "run")
@@ -90,9 +101,9 @@ def main(argv: list[str] | None = None) -> int:
             for what in order:
                 print(f"{threads} thread(s), round {r + 1}: {what}", file=sys.stderr, flush=True)
                 if what == "run":
-                    report, timing[what] = run_cli(PARAMS, points, steps, threads)
+                    report, timing[what] = run_cli(PARAMS, points, steps, threads, args.device)
                 else:
-                    ens, timing[what] = _kernel(points, steps, threads)
+                    ens, timing[what] = _kernel(points, steps, threads, args.device)
             summary = ens.summary(warn=False)
             equal &= report["A"] == summary.A and report["lyapunov"] == summary.lyapunov
             wall.append(timing["kernel"].seconds / timing["run"].seconds)
@@ -109,11 +120,15 @@ def main(argv: list[str] | None = None) -> int:
                 "run_cpu_use": timing["run"].cpu_seconds / (timing["run"].seconds * threads),
             }
         )
-    report = {"points": points, "steps": steps, "rounds": rounds, "results": results, "bitwise_equal": equal}
+    report = {"points": points, "steps": steps, "rounds": rounds, "device": args.device}
+    report |= {"results": results, "bitwise_equal": equal}
     if args.json:
         print(json.dumps(report))
     else:
-        print(f"warpratchet run / kernel alone, {points:,} points x {steps:,} steps, {rounds} rounds")
+        print(
+            f"warpratchet run / kernel alone, {points:,} points x {steps:,} steps, {rounds} rounds"
+            f" on {args.device}"
+        )
         head = f"{'threads':>7}  {'wall: median [range]':<24}{'CPU: median [range]':<24}"
         print(head + f"{'CPU use (kernel, run)':>22}")
         for row in results:

@@ -215,7 +215,7 @@ def test_end_to_end_benchmark_runs_and_reports_the_kernels_numbers():
     """Smoke test of ``benchmarks/end_to_end.py --quick`` (structure; no timing assertions): the
     run's reported A and Lyapunov exponent are the kernel-only ensemble's, bit for bit."""
     report = quick_benchmark("end_to_end.py")
-    assert report["bitwise_equal"] is True and report["rounds"] == 1
+    assert report["bitwise_equal"] is True and report["rounds"] == 1 and report["device"] == "cpu"
     assert [row["threads"] for row in report["results"]][0] == 1
     for row in report["results"]:
         for key in ("run_over_kernel_wall", "run_over_kernel_cpu"):
