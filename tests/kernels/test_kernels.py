@@ -6,6 +6,10 @@ the tangent are the CPU's bit for bit; ``log`` is CUDA's own, so the log-stretch
 few ulp (compiled here with NVRTC, not run: this machine has no GPU).
 """
 
+import concurrent.futures
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 import pytest
 import warp as wp
@@ -104,6 +108,37 @@ def test_a_chunk_of_2_to_the_32_steps_is_split_into_launches_not_dropped(monkeyp
     assert all(0 < steps <= kernels.MAX_LAUNCH_STEPS < 2**31 for *_, steps in launches)
     assert [step0 for _, _, step0, _ in launches] == [0, *np.cumsum([s for *_, s in launches])[:-1]]
     assert {(lo, hi) for lo, hi, *_ in launches} == {(0, 8)}
+
+
+def test_a_failing_shard_on_the_calling_thread_waits_for_the_pools_shards(monkeypatch):
+    """With a pool, the calling thread launches the first shard itself. If that launch raises, the
+    error must reach the caller only after the pool's shards have finished: until then they write
+    the ensemble's arrays. The pool's shard here finishes only once the ensemble waits for it."""
+    import warpratchet.ensemble as ensemble_module
+
+    waiting, finished = threading.Event(), threading.Event()
+
+    def launch(self, lo, hi, step0, steps):
+        if lo == 0:
+            raise RuntimeError("the first shard failed")
+        assert waiting.wait(60), "the ensemble never waited for the pool's shard"
+        finished.set()
+
+    def wait(futures):
+        waiting.set()
+        return concurrent.futures.wait(futures)
+
+    monkeypatch.setattr(Ensemble, "_launch", launch)
+    monkeypatch.setattr(ensemble_module, "wait", wait)
+    ens = _ensemble(MapParams(3.0, 0.1, 0.01), n=64, threads=2)
+    with ThreadPoolExecutor(2) as pool:
+        try:
+            with pytest.raises(RuntimeError, match="the first shard failed"):
+                ens._advance(5, pool)
+            assert finished.is_set()
+            assert ens.step == 0  # the failed chunk is not counted
+        finally:
+            waiting.set()  # never leave the pool's thread blocked, whatever failed above
 
 
 def test_a_launch_refuses_a_step_count_it_cannot_carry():
