@@ -184,6 +184,13 @@ class Rows:
         self.datasets = {name: group[name] for name in names}
         self.dtypes = {name: ds.dtype for name, ds in self.datasets.items()}
         self.row_shapes = {name: ds.shape[1:] for name, ds in self.datasets.items()}
+        # A dataset's chunks never change: their rows, and the file space a new one takes
+        self.chunk_rows = {name: ds.chunks[0] for name, ds in self.datasets.items()}
+        self.chunk_bytes = {
+            name: h5_bytes(ds.dtype.itemsize * int(np.prod(ds.chunks))) for name, ds in self.datasets.items()
+        }
+        # Per dataset, the memory space of one row and the file space (taken again after a resize)
+        self._spaces: dict[str, tuple] = {}
         self.capacity = min(ds.shape[0] for ds in self.datasets.values())
         self.counter = counter
         self.count = count
@@ -195,13 +202,16 @@ class Rows:
             self.capacity = index + ROW_CHUNK
             for ds in self.datasets.values():
                 ds.resize(self.capacity, axis=0)
+            self._spaces.clear()
         for name, value in row.items():
             shape = (1, *self.row_shapes[name])
             values = np.ascontiguousarray(value, dtype=self.dtypes[name]).reshape(shape)
             ds = self.datasets[name]
-            space = ds.id.get_space()
-            space.select_hyperslab((index,) + (0,) * (len(shape) - 1), shape)
-            ds.id.write(h5s.create_simple(shape), space, values)
+            spaces = self._spaces.get(name)
+            if spaces is None:
+                spaces = self._spaces[name] = h5s.create_simple(shape), ds.id.get_space()
+            spaces[1].select_hyperslab((index,) + (0,) * (len(shape) - 1), shape)
+            ds.id.write(spaces[0], spaces[1], values)
         self.staged += 1
 
     def growth_bytes(self, rows: int = 1) -> int:
@@ -209,9 +219,8 @@ class Rows:
         chunk at its first write; :func:`~warpratchet._storage.h5_bytes`)."""
         first = self.count + self.staged
         return sum(
-            h5_bytes(ds.dtype.itemsize * int(np.prod(ds.chunks)))
-            * sum((first + k) % ds.chunks[0] == 0 for k in range(rows))
-            for ds in self.datasets.values()
+            self.chunk_bytes[name] * sum((first + k) % chunk_rows == 0 for k in range(rows))
+            for name, chunk_rows in self.chunk_rows.items()
         )
 
     def commit(self) -> None:
@@ -226,6 +235,7 @@ class Rows:
             for ds in self.datasets.values():
                 ds.resize(self.count, axis=0)
             self.capacity = self.count
+            self._spaces.clear()
 
 
 # -- the two checkpoint slots ---------------------------------------------------------------------
