@@ -222,6 +222,19 @@ def test_end_to_end_benchmark_runs_and_reports_the_kernels_numbers():
             assert 0 < row[key]["min"] <= row[key]["median"] <= row[key]["max"]
 
 
+def test_run_pieces_benchmark_times_the_runs_launches_and_rows():
+    """Smoke test of ``benchmarks/run_pieces.py --quick`` (structure; no timing assertions): the
+    run's launches and rows are counted, and one thread has no shards to wait for."""
+    report = quick_benchmark("run_pieces.py")
+    assert report["rounds"] == 1 and report["results"][0]["threads"] == 1
+    for row in report["results"]:
+        assert row["launches"] >= 1 and row["rows"] >= 1 and row["blocks"] >= 1
+        assert 0 < row["launch_s"] <= row["run_s"] and 0 < row["kernel_launch_s"] <= row["kernel_s"]
+        assert row["start_lag_s"] >= 0 and row["shard_lag_s"] >= 0 and row["row_s"] > 0
+        if row["threads"] == 1:
+            assert row["start_lag_s"] == row["shard_lag_s"] == 0
+
+
 def test_launch_cost_benchmark_splits_a_launch_into_fixed_and_per_step_parts():
     """Smoke test of ``benchmarks/launch_cost.py --quick`` (structure; no timing assertions): one
     row per slice size and way of launching (packed each time, or a recorded launch replayed), and

@@ -1,0 +1,169 @@
+"""Where a ``warpratchet run`` spends what its kernel does not: every launch and every row timed.
+
+Each round runs ``warpratchet run --K 3 --b1 0.1 --b2 0.01 --points N --steps S --threads T
+--json --quiet`` in this process, then the kernel alone (the same sampling and one
+``Ensemble.run(S, chunk_steps=S)``), and times, inside both:
+
+* **launches**: each chunk's launches (``Ensemble._advance``), against the kernel alone's one;
+  with a pool, per launch, how much later the pool's shards start than the calling thread's
+  (``start lag``) and how much longer the slowest shard runs than the fastest (``shard lag``:
+  what the barrier after the launch waits for);
+* **rows**: each history row's summary (``Ensemble.summary``), their count and median;
+* **blocks**: the block records made from the history's own copy of its subsample.
+
+Only the ensemble of the run is counted under launches (not the block records' copy). The numbers
+explain :mod:`end_to_end`'s ratio; they are not a target.
+
+Usage::
+
+    python benchmarks/run_pieces.py                                  # 10^6 x 6000, 2 rounds, 1 and 2 threads
+    python benchmarks/run_pieces.py --points 10000 --steps 120000    # the README's main job
+    python benchmarks/run_pieces.py --quick --json                   # smoke test
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import io
+import json
+import statistics
+import sys
+import time
+from collections.abc import Iterator
+
+from end_to_end import INIT, PARAMS, SEED, run_cli
+from throughput_contenders import Clock
+
+from warpratchet import Ensemble
+from warpratchet.cli import positive_int
+from warpratchet.ensemble import default_threads
+from warpratchet.history import History
+
+
+class Probe:
+    """Timings of launches, shards, rows and block records while installed (:meth:`installed`)."""
+
+    def __init__(self) -> None:
+        self.launches: list[dict] = []  # per _advance of a counted ensemble: steps, seconds, lags
+        self.rows: list[float] = []
+        self.blocks: list[float] = []
+        self._in_blocks = False
+        self._shards: list[tuple[float, float]] = []
+
+    @contextlib.contextmanager
+    def installed(self) -> Iterator[Probe]:
+        probe = self
+        launch, advance = Ensemble._launch, Ensemble._advance
+        summary, record_block = Ensemble.summary, History._record_block
+
+        def timed_launch(self, lo, hi, step0, steps):
+            start = time.perf_counter()
+            launch(self, lo, hi, step0, steps)
+            probe._shards.append((start, time.perf_counter()))
+
+        def timed_advance(self, steps, pool):
+            probe._shards = []
+            start = time.perf_counter()
+            advance(self, steps, pool)
+            seconds = time.perf_counter() - start
+            if not probe._in_blocks:
+                shards = probe._shards
+                starts, durations = [s for s, _ in shards], [e - s for s, e in shards]
+                probe.launches.append(
+                    {
+                        "steps": steps,
+                        "seconds": seconds,
+                        "start_lag": max(starts) - min(starts) if len(shards) > 1 else 0.0,
+                        "shard_lag": max(durations) - min(durations) if len(shards) > 1 else 0.0,
+                    }
+                )
+
+        def timed_summary(self, *args, **kwargs):
+            start = time.perf_counter()
+            result = summary(self, *args, **kwargs)
+            probe.rows.append(time.perf_counter() - start)
+            return result
+
+        def timed_record_block(self, step):
+            probe._in_blocks = True
+            start = time.perf_counter()
+            try:
+                record_block(self, step)
+            finally:
+                probe._in_blocks = False
+                probe.blocks.append(time.perf_counter() - start)
+
+        Ensemble._launch, Ensemble._advance = timed_launch, timed_advance
+        Ensemble.summary, History._record_block = timed_summary, timed_record_block
+        try:
+            yield self
+        finally:
+            Ensemble._launch, Ensemble._advance = launch, advance
+            Ensemble.summary, History._record_block = summary, record_block
+
+
+def measure(points: int, steps: int, threads: int) -> dict:
+    """One round: the run, then the kernel alone, each under its own :class:`Probe`."""
+    with Probe().installed() as run:
+        _, run_timing = run_cli(PARAMS, points, steps, threads)
+    with Probe().installed() as kernel, Clock() as clock:
+        Ensemble.sample(PARAMS, points, init=INIT, seed=SEED, threads=threads).run(steps, chunk_steps=steps)
+    launch_s = sum(x["seconds"] for x in run.launches)
+    kernel_launch_s = sum(x["seconds"] for x in kernel.launches)
+    return {
+        "run_s": run_timing.seconds,
+        "kernel_s": clock.timing.seconds,
+        "ratio": clock.timing.seconds / run_timing.seconds,
+        "launches": len(run.launches),
+        "launch_s": launch_s,
+        "kernel_launch_s": kernel_launch_s,
+        "launch_s_beyond_kernel": launch_s - kernel_launch_s,
+        "start_lag_s": sum(x["start_lag"] for x in run.launches),
+        "shard_lag_s": sum(x["shard_lag"] for x in run.launches),
+        "shard_lag_ms_median": 1e3 * statistics.median(x["shard_lag"] for x in run.launches),
+        "rows": len(run.rows),
+        "row_s": sum(run.rows),
+        "row_ms_median": 1e3 * statistics.median(run.rows) if run.rows else 0.0,
+        "blocks": len(run.blocks),
+        "block_s": sum(run.blocks),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="run_pieces.py", description=__doc__.splitlines()[0])
+    parser.add_argument("--points", type=positive_int, default=None, help="ensemble size (default 10^6)")
+    parser.add_argument("--steps", type=positive_int, default=None, help="iterations (default 6000)")
+    parser.add_argument("--rounds", type=positive_int, default=2, help="rounds per thread count (default 2)")
+    parser.add_argument("--quick", action="store_true", help="20 000 points x 600 steps, 1 round")
+    parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
+    args = parser.parse_args(argv)
+    points = args.points or (20_000 if args.quick else 1_000_000)
+    steps = args.steps or (600 if args.quick else 6000)
+    rounds = 1 if args.quick else args.rounds
+    Ensemble.sample(PARAMS, 64, threads=1).run(16)  # compile (or load) the kernel outside the timings
+    results = []
+    for threads in sorted({1, default_threads()}):
+        for r in range(rounds):
+            print(f"{threads} thread(s), round {r + 1}", file=sys.stderr, flush=True)
+            with contextlib.redirect_stdout(io.StringIO()):
+                results.append({"threads": threads, "round": r + 1, **measure(points, steps, threads)})
+    report = {"points": points, "steps": steps, "rounds": rounds, "results": results}
+    if args.json:
+        print(json.dumps(report))
+        return 0
+    print(f"warpratchet run, piece by piece: {points:,} points x {steps:,} steps (seconds; lags summed)")
+    head = ["threads", "run", "kernel", "ratio", "launches", "beyond", "start lag", "shard lag"]
+    head += ["rows", "row ms", "blocks"]
+    print("".join(f"{h:>10}" for h in head))
+    for row in results:
+        cells = [row["threads"], f"{row['run_s']:.3f}", f"{row['kernel_s']:.3f}", f"{row['ratio']:.3f}"]
+        cells += [row["launches"], f"{row['launch_s_beyond_kernel']:.3f}", f"{row['start_lag_s']:.3f}"]
+        cells += [f"{row['shard_lag_s']:.3f}", row["rows"], f"{row['row_ms_median']:.1f}"]
+        cells += [f"{row['block_s']:.3f}"]
+        print("".join(f"{c:>10}" for c in cells))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
