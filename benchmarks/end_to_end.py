@@ -75,18 +75,30 @@ def _median_range(values: list[float]) -> dict[str, float]:
     return {"median": statistics.median(values), "min": min(values), "max": max(values)}
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="end_to_end.py", description=__doc__.splitlines()[0])
+def job_parser(prog: str, description: str, rounds: int) -> argparse.ArgumentParser:
+    """The job's options (``--points``, ``--steps``, ``--rounds``, ``--quick``, ``--json``), which
+    :func:`job_size` reads; ``rounds``: the default number of rounds."""
+    parser = argparse.ArgumentParser(prog=prog, description=description)
     parser.add_argument("--points", type=positive_int, default=None, help="ensemble size (default 10^6)")
     parser.add_argument("--steps", type=positive_int, default=None, help="iterations (default 6000)")
-    parser.add_argument("--rounds", type=positive_int, default=3, help="alternating rounds (default 3)")
+    parser.add_argument("--rounds", type=positive_int, default=rounds, help=f"rounds (default {rounds})")
     parser.add_argument("--quick", action="store_true", help="20 000 points x 600 steps, 1 round")
-    parser.add_argument("--device", default="cpu", help="Warp device, e.g. cuda:0 (default cpu)")
     parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def job_size(args: argparse.Namespace) -> tuple[int, int, int]:
+    """``(points, steps, rounds)`` from :func:`job_parser`'s options."""
     points = args.points or (20_000 if args.quick else 1_000_000)
     steps = args.steps or (600 if args.quick else 6000)
-    rounds = 1 if args.quick else args.rounds
+    return points, steps, 1 if args.quick else args.rounds
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = job_parser("end_to_end.py", __doc__.splitlines()[0], rounds=3)
+    parser.add_argument("--device", default="cpu", help="Warp device, e.g. cuda:0 (default cpu)")
+    args = parser.parse_args(argv)
+    points, steps, rounds = job_size(args)
     try:  # compile (or load) the kernel outside the timings
         Ensemble.sample(PARAMS, 64, threads=1, device=args.device).run(16)
     except ValueError as error:  # e.g. device = 'cuda:7' is not available (Warp sees: cpu)

@@ -23,7 +23,6 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import io
 import json
@@ -32,11 +31,10 @@ import sys
 import time
 from collections.abc import Iterator
 
-from end_to_end import INIT, PARAMS, SEED, run_cli
+from end_to_end import INIT, PARAMS, SEED, job_parser, job_size, run_cli
 from throughput_contenders import Clock
 
 from warpratchet import Ensemble
-from warpratchet.cli import positive_int
 from warpratchet.ensemble import default_threads
 from warpratchet.history import History
 
@@ -131,16 +129,8 @@ def measure(points: int, steps: int, threads: int) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="run_pieces.py", description=__doc__.splitlines()[0])
-    parser.add_argument("--points", type=positive_int, default=None, help="ensemble size (default 10^6)")
-    parser.add_argument("--steps", type=positive_int, default=None, help="iterations (default 6000)")
-    parser.add_argument("--rounds", type=positive_int, default=2, help="rounds per thread count (default 2)")
-    parser.add_argument("--quick", action="store_true", help="20 000 points x 600 steps, 1 round")
-    parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
-    args = parser.parse_args(argv)
-    points = args.points or (20_000 if args.quick else 1_000_000)
-    steps = args.steps or (600 if args.quick else 6000)
-    rounds = 1 if args.quick else args.rounds
+    args = job_parser("run_pieces.py", __doc__.splitlines()[0], rounds=2).parse_args(argv)
+    points, steps, rounds = job_size(args)
     Ensemble.sample(PARAMS, 64, threads=1).run(16)  # compile (or load) the kernel outside the timings
     results = []
     for threads in sorted({1, default_threads()}):
