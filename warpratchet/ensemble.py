@@ -18,6 +18,7 @@ is independent, so results are bitwise identical for any thread count.
 
 from __future__ import annotations
 
+import functools
 import operator
 import os
 from collections.abc import Iterable, Mapping, Sequence
@@ -451,11 +452,11 @@ class Ensemble:
     ) -> Summary | None:
         """:func:`~warpratchet.observables.summarize_with_variance` of the current state on this
         ensemble's threads (the variance kept for :meth:`known_variance`), or None to leave the
-        summary to ``summarize``: a GPU, more points than one summary chunk, a value not finite.
+        summary to ``summarize``: a GPU, a value not finite.
 
         During :meth:`run` the threads are the run's own, idle between its launches; outside a
         run a pool lives for this summary only."""
-        if self.points > SUMMARY_CHUNK or not wp.get_device(self.device).is_cpu or self.step < 1:
+        if not wp.get_device(self.device).is_cpu or self.step < 1:
             return None
         if threshold is None:
             threshold = lyapunov_threshold(self.step, threshold_rule)
@@ -466,7 +467,7 @@ class Ensemble:
         options: dict[str, Any] = {"buffers": self._row_buffers}
         few = self.points < 4 * TREE_LEAF  # a few leaves: not worth the threads, nor the launches
         if not few and (ftle is not None or kernels.row_pass_available()):
-            options["leaf_pass"] = kernels.RowPass(views, ftle, self._row_buffers)
+            options["leaf_pass"] = functools.partial(kernels.RowPass, buffers=self._row_buffers)
             options["leaf_sums"] = kernels.leaf_sums
         # kernels take equal shares in equal times: one piece per thread (fewer gathered parts
         # to join); NumPy's passes balance better in smaller pieces

@@ -452,48 +452,65 @@ def summarize_with_variance(
     leaf_sums: Callable | None = None,
     buffers: dict | None = None,
 ) -> tuple[Summary, float] | None:
-    """:func:`summarize` of at most :data:`SUMMARY_CHUNK` points and the variance (ddof 1) of their
-    :func:`momentum_gain` (a history row's ``var_dp_all``), bit for bit, in fewer passes and on
-    ``pool``'s threads.
+    """:func:`summarize` and the variance (ddof 1) of every point's :func:`momentum_gain` (a history
+    row's ``var_dp_all``), bit for bit, in fewer passes and on ``pool``'s threads.
 
-    The per-point values (FTLE, ``p_n - p_0``, ``A_n``, the masks) are computed leaf by leaf of
-    :func:`pairwise_tree` (cache-sized), the chaotic and ambiguous points' values gathered in
-    order; each sum is then NumPy's pairwise sum rebuilt from its leaves' sums (:func:`tree_total`),
-    so every number is that of :func:`summarize` and of the history's variance. ``batches``: how
-    many pieces each pass is cut into for the pool. ``threshold``: the FTLE threshold itself (a
-    rule's is :func:`lyapunov_threshold`). Returns None where a value is not finite
-    (:func:`summarize` says which, in its error) or the state is larger than one chunk.
+    The points are taken in :func:`summarize`'s chunks of :data:`SUMMARY_CHUNK`, and within a chunk
+    leaf by leaf of :func:`pairwise_tree` (cache-sized): the per-point values (FTLE, ``p_n - p_0``,
+    ``A_n``, the masks) are computed, the chaotic and ambiguous points' values gathered in order,
+    and each sum is NumPy's pairwise sum of the chunk rebuilt from its leaves' sums
+    (:func:`tree_total`); the chunks' sums are then put together as :func:`summarize` and the
+    history's variance put them together. So every number is theirs. With more than one chunk the
+    per-point pass runs twice per chunk (the second time for the deviations from the means of all
+    chunks), so that the memory stays that of one chunk. ``batches``: how many pieces each pass of
+    a chunk is cut into for the pool. ``threshold``: the FTLE threshold itself (a rule's is
+    :func:`lyapunov_threshold`). Returns None where a value is not finite (:func:`summarize` says
+    which, in its error).
 
-    The work may be done elsewhere, to the same bits: ``leaf_pass``, the per-point values of a
-    group of leaves and its leaves' sums of the gains (:class:`warpratchet.kernels.RowPass`'s
-    contract; a group it returns None for is computed here), and ``leaf_sums``, each leaf's
-    ``np.add.reduce`` of the values or of their squared or absolute deviations from a value
-    (:func:`warpratchet.kernels.leaf_sums`).
+    The work may be done elsewhere, to the same bits: ``leaf_pass(state, ftle)``, given a chunk's
+    arrays (views) and its FTLE (or None), returns the per-point pass of that chunk: for a group of
+    its leaves, the per-point values and its leaves' sums of the gains
+    (:class:`warpratchet.kernels.RowPass`'s contract; a group it returns None for is computed
+    here); and ``leaf_sums``, each leaf's ``np.add.reduce`` of the values or of their squared or
+    absolute deviations from a value (:func:`warpratchet.kernels.leaf_sums`).
     ``buffers``: a dict the caller keeps from one call to the next, where the arrays are kept for
     reuse (fresh pages cost more than the arithmetic on them).
     """
     step = check_count("step", step, 1)
     threshold = check_real("threshold", threshold, 0.0)
     n = len(state["log_stretch"])
-    if n > SUMMARY_CHUNK or (ftle is not None and np.shape(ftle) != (n,)):
+    if ftle is not None and np.shape(ftle) != (n,):
         return None
-    x = {name: state[name] for name in ("winding", "q", "p0", "dx", "dp", "log_stretch")}
     buffers = {} if buffers is None else buffers
-    gain = _buffer(buffers, "gain", n)
     low, high = threshold / AMBIGUITY_FACTOR, threshold * AMBIGUITY_FACTOR
-    tree = pairwise_tree(0, n)
-    leaves = tree_leaves(tree)
+    bounds = [(lo, min(n, lo + SUMMARY_CHUNK)) for lo in range(0, max(n, 1), SUMMARY_CHUNK)]
 
-    def first_pass(group: list[tuple[int, int]]) -> tuple:
-        done = None if leaf_pass is None else leaf_pass(group, gain, step, threshold, low, high)
-        if done is not None:
-            return done
-        done = numpy_pass(group)
-        if leaf_sums is not None:
-            return (*done, dict(zip(group, leaf_sums(gain, group), strict=True)))
-        return (*done, {(lo, hi): np.add.reduce(gain[lo:hi]) for lo, hi in group})
+    def run(jobs: list) -> list:
+        return [total for totals in _batched(pool, jobs, batches) for total in totals]
 
-    def numpy_pass(group: list[tuple[int, int]]) -> tuple:
+    def sums_of(values: np.ndarray, leaves: list, term: str = "value", center: float = 0.0) -> list:
+        """Jobs that give the sums of ``values``' terms over ``leaves``, a list of sums each."""
+        if leaf_sums is not None:  # one call per batch of leaves
+            return [
+                lambda part=part: list(leaf_sums(values, part, term, center))
+                for part in _pieces(leaves, batches)
+            ]
+
+        def job(lo: int, hi: int) -> list:
+            part = values[lo:hi]
+            if term == "value":
+                return [np.add.reduce(part)]
+            # one scratch array per thread: jobs of one thread run one after another
+            d = np.subtract(part, center, out=_buffer(buffers, f"scratch {threading.get_ident()}", hi - lo))
+            return [np.add.reduce(np.multiply(d, d, out=d) if term == "square" else np.abs(d, out=d))]
+
+        return [lambda lo=lo, hi=hi: job(lo, hi) for lo, hi in leaves]
+
+    def numpy_pass(
+        x: Mapping[str, np.ndarray], ftle: np.ndarray | None, gain: np.ndarray, group: list[tuple[int, int]]
+    ) -> tuple:
+        """The per-point values of the leaves ``group`` of the chunk ``x`` in NumPy (``leaf_pass``'s
+        contract without the gains' sums); ``gain`` filled there."""
         size = sum(hi - lo for lo, hi in group)
         longest = max(hi - lo for lo, hi in group)
         chaotic_ftle, chaotic_acc, ambiguous_acc = np.empty(size), np.empty(size), np.empty(size)
@@ -528,73 +545,96 @@ def summarize_with_variance(
                 k += values.size
         return [chaotic_ftle[:m]], [chaotic_acc[:m]], [ambiguous_acc[:k]], least, finite
 
-    firsts = _batched(pool, [lambda g=g: first_pass(g) for g in _pieces(leaves, batches)], batches)
-    if not all(part[4] for part in firsts):
-        return None
-    # one contiguous array each: the sums below read every value two or three times, in leaves
-    # that span the groups' parts
-    c_ftle, c_acc, a_acc = (
-        _contiguous([p for part in firsts for p in part[i]], buffers, name)
-        for i, name in enumerate(("chaotic_ftle", "chaotic_acc", "ambiguous_acc"))
-    )
-    gain_sums = {leaf: total for part in firsts for leaf, total in part[5].items()}
-    # coarser cuts of the same trees: the leaves' sums add up to the same totals
-    m_tree, k_tree = pairwise_tree(0, c_ftle.size, SUM_LEAF), pairwise_tree(0, a_acc.size, SUM_LEAF)
-    m_leaves, k_leaves = tree_leaves(m_tree), tree_leaves(k_tree)
+    def first_pass(lo: int, hi: int) -> tuple | None:
+        """A chunk's per-point pass and its :func:`chunk_sums` (sums over the gathered values):
+        ``(chunk_sums, the gains' total, gathered arrays, gains)``, or None if not finite."""
+        size = hi - lo
+        x = {name: state[name][lo:hi] for name in ("winding", "q", "p0", "dx", "dp", "log_stretch")}
+        f_given = None if ftle is None else ftle[lo:hi]
+        gain = _buffer(buffers, "gain", size)
+        tree = pairwise_tree(0, size)
+        chunk_pass = None if leaf_pass is None else leaf_pass(x, f_given)
 
-    def sums_of(values: np.ndarray, leaves: list, term: str = "value", center: float = 0.0) -> list:
-        """Jobs that give the sums of ``values``' terms over ``leaves``, a list of sums each."""
-        if leaf_sums is not None:  # one call per batch of leaves
-            return [
-                lambda part=part: list(leaf_sums(values, part, term, center))
-                for part in _pieces(leaves, batches)
-            ]
+        def group_pass(group: list[tuple[int, int]]) -> tuple:
+            done = None if chunk_pass is None else chunk_pass(group, gain, step, threshold, low, high)
+            if done is not None:
+                return done
+            done = numpy_pass(x, f_given, gain, group)
+            if leaf_sums is not None:
+                return (*done, dict(zip(group, leaf_sums(gain, group), strict=True)))
+            return (*done, {(lo, hi): np.add.reduce(gain[lo:hi]) for lo, hi in group})
 
-        def job(lo: int, hi: int) -> list:
-            part = values[lo:hi]
-            if term == "value":
-                return [np.add.reduce(part)]
-            # one scratch array per thread: jobs of one thread run one after another
-            d = np.subtract(part, center, out=_buffer(buffers, f"scratch {threading.get_ident()}", hi - lo))
-            return [np.add.reduce(np.multiply(d, d, out=d) if term == "square" else np.abs(d, out=d))]
+        groups = _pieces(tree_leaves(tree), batches)
+        firsts = _batched(pool, [lambda g=g: group_pass(g) for g in groups], batches)
+        if not all(part[4] for part in firsts):
+            return None
+        # one contiguous array each: the sums below read every value two or three times, in leaves
+        # that span the groups' parts
+        c_ftle, c_acc, a_acc = (
+            _contiguous([p for part in firsts for p in part[i]], buffers, name)
+            for i, name in enumerate(("chaotic_ftle", "chaotic_acc", "ambiguous_acc"))
+        )
+        gain_sums = {leaf: total for part in firsts for leaf, total in part[5].items()}
+        # coarser cuts of the same trees: the leaves' sums add up to the same totals
+        m_tree = pairwise_tree(0, c_ftle.size, SUM_LEAF)
+        m_leaves = tree_leaves(m_tree)
+        done = run(sums_of(c_acc, m_leaves) + sums_of(c_ftle, m_leaves))
+        sum_a = tree_total(m_tree, dict(zip(m_leaves, done[: len(m_leaves)], strict=True)))
+        sum_f = tree_total(m_tree, dict(zip(m_leaves, done[len(m_leaves) :], strict=True)))
+        least = min(part[3] for part in firsts)
+        sums = (sum_a, sum_f, c_ftle.size, least, a_acc.size)
+        return sums, tree_total(tree, gain_sums), (c_ftle, c_acc, a_acc), gain
 
-        return [lambda lo=lo, hi=hi: job(lo, hi) for lo, hi in leaves]
-
-    def run(jobs: list) -> list:
-        return [total for totals in _batched(pool, jobs, batches) for total in totals]
-
-    done = run(sums_of(c_acc, m_leaves) + sums_of(c_ftle, m_leaves))
-    sum_a = tree_total(m_tree, dict(zip(m_leaves, done[: len(m_leaves)], strict=True)))
-    sum_f = tree_total(m_tree, dict(zip(m_leaves, done[len(m_leaves) :], strict=True)))
-    least = min(part[3] for part in firsts)
-    first = [(sum_a, sum_f, c_ftle.size, least, a_acc.size)]
-    a_mean, ftle_mean = summary_means(first)
-    squares = needs_squares(first)
-    jobs = []
-    if squares:
-        jobs += sums_of(c_acc, m_leaves, "square", a_mean) + sums_of(c_ftle, m_leaves, "square", ftle_mean)
-        jobs += sums_of(a_acc, k_leaves, "absolute", a_mean)
-    if n >= 2:  # history's variance: the mean as a Python float, then the squared deviations
-        mean = float(tree_total(tree, gain_sums)) / n
-        tree = pairwise_tree(0, n, SUM_LEAF)
-        leaves = tree_leaves(tree)
-        jobs += sums_of(gain, leaves, "square", mean)
-    done = run(jobs)
-    second = []
-    if squares:
-        parts = done[: len(m_leaves)], done[len(m_leaves) : 2 * len(m_leaves)]
-        deviations = done[2 * len(m_leaves) : 2 * len(m_leaves) + len(k_leaves)]
-        second = [
-            (
+    def second_pass(gathered: tuple, gain: np.ndarray, means: tuple | None, mean: float) -> tuple:
+        """A chunk's :func:`chunk_squares` (None without ``means``) and its gains' squared deviations
+        from ``mean`` (None for fewer than 2 points in all)."""
+        c_ftle, c_acc, a_acc = gathered
+        m_leaves = tree_leaves(m_tree := pairwise_tree(0, c_ftle.size, SUM_LEAF))
+        k_leaves = tree_leaves(k_tree := pairwise_tree(0, a_acc.size, SUM_LEAF))
+        g_leaves = tree_leaves(g_tree := pairwise_tree(0, gain.size, SUM_LEAF))
+        jobs = []
+        if means is not None:
+            a_mean, ftle_mean = means
+            jobs += sums_of(c_acc, m_leaves, "square", a_mean)
+            jobs += sums_of(c_ftle, m_leaves, "square", ftle_mean)
+            jobs += sums_of(a_acc, k_leaves, "absolute", a_mean)
+        if n >= 2:  # history's variance: the mean as a Python float, then the squared deviations
+            jobs += sums_of(gain, g_leaves, "square", mean)
+        done = run(jobs)
+        squares = None
+        if means is not None:
+            parts = done[: len(m_leaves)], done[len(m_leaves) : 2 * len(m_leaves)]
+            deviations = done[2 * len(m_leaves) : 2 * len(m_leaves) + len(k_leaves)]
+            squares = (
                 tree_total(m_tree, dict(zip(m_leaves, parts[0], strict=True))),
                 tree_total(m_tree, dict(zip(m_leaves, parts[1], strict=True))),
                 tree_total(k_tree, dict(zip(k_leaves, deviations, strict=True))),
             )
-        ]
-    variance = math.nan
-    if n >= 2:
-        total = 0.0 + float(tree_total(tree, dict(zip(leaves, done[len(done) - len(leaves) :], strict=True))))
-        variance = total / (n - 1)
+        gains = None
+        if n >= 2:
+            gains = tree_total(g_tree, dict(zip(g_leaves, done[len(done) - len(g_leaves) :], strict=True)))
+        return squares, gains
+
+    firsts = []
+    for lo, hi in bounds:
+        done = first_pass(lo, hi)
+        if done is None:
+            return None
+        firsts.append(done)
+    first = [part[0] for part in firsts]
+    means = summary_means(first) if needs_squares(first) else None
+    # history's variance (history._variance): the mean from the chunks' sums as Python floats
+    mean = math.fsum(float(part[1]) for part in firsts) / n if n >= 2 else math.nan
+    second, squares = [], 0.0
+    for (lo, hi), part in zip(bounds, firsts, strict=True):
+        if len(bounds) > 1:  # the chunk's gathered values and gains again (one chunk's memory)
+            part = first_pass(lo, hi)
+        chunk_squares, gains = second_pass(part[2], part[3], means, mean)
+        if chunk_squares is not None:
+            second.append(chunk_squares)
+        if gains is not None:
+            squares += float(gains)
+    variance = squares / (n - 1) if n >= 2 else math.nan
     return summary_from_sums(step, threshold, n, first, second), variance
 
 

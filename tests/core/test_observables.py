@@ -1,6 +1,7 @@
 """``observables.summarize`` in chunks: NumPy's whole-array reductions bit for bit up to one chunk,
 and within the rounding bound of pairwise summation beyond it."""
 
+import functools
 import math
 
 import numpy as np
@@ -181,7 +182,7 @@ def test_the_summary_with_variance_on_threads_is_summarize_and_the_history_varia
                     known,
                     pool=pool if threads > 1 else None,
                     batches=4 * threads,
-                    leaf_pass=kernels.RowPass(state, known, buffers),
+                    leaf_pass=functools.partial(kernels.RowPass, buffers=buffers),
                     leaf_sums=kernels.leaf_sums,
                     buffers=buffers,
                 )
@@ -196,12 +197,51 @@ def test_the_summary_with_variance_leaves_what_it_cannot_do_to_summarize():
     assert observables.summarize_with_variance(state, 50, lyapunov_threshold(50)) is None
     ftle = lyapunov(state, 50)
     for known in [ftle, None] if kernels.row_pass_available() else [ftle]:
-        row_pass = kernels.RowPass(state, known)
         assert (
-            observables.summarize_with_variance(state, 50, lyapunov_threshold(50), known, leaf_pass=row_pass)
+            observables.summarize_with_variance(
+                state, 50, lyapunov_threshold(50), known, leaf_pass=kernels.RowPass
+            )
             is None
         )
     with pytest.raises(ValueError, match="non-finite FTLE"):
         summarize(state, 50)
-    big = {name: np.zeros(observables.SUMMARY_CHUNK + 1) for name in state}
-    assert observables.summarize_with_variance(big, 50, lyapunov_threshold(50)) is None
+
+
+@pytest.mark.parametrize(("chunk", "threads"), [(1000, 1), (1000, 2), (4096, 3), (39_999, 2)])
+def test_past_one_chunk_the_summary_with_variance_adds_the_chunks_as_summarize_does(
+    monkeypatch, chunk, threads
+):
+    """More points than :data:`SUMMARY_CHUNK`: ``summarize`` adds up its chunks' sums (not NumPy's
+    pairwise sum of the whole array) and the history's variance adds the chunks' sums as Python
+    floats; the summary with variance, in NumPy or in the kernels, on the threads, gives the same
+    bits (the chunk shrunk here, so that 40,000 points make 10, 3 or 2 chunks, the last a part)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import warpratchet.history
+
+    for module in (observables, warpratchet.history):
+        monkeypatch.setattr(module, "SUMMARY_CHUNK", chunk)
+    monkeypatch.setattr(observables, "TREE_LEAF", 128)  # many leaves in a chunk, on the threads
+    state = _state(40_000, 300, seed=11)
+    ftle = lyapunov(state, 300)
+    for threshold in (0.05, lyapunov_threshold(300), 0.0):
+        want, variance = _reference(state, 300, threshold)
+        buffers = {}
+        kernel_passes = [ftle, None] if kernels.row_pass_available() else [ftle]
+        ways = [(None, None, None)] + [(known, kernels.RowPass, kernels.leaf_sums) for known in kernel_passes]
+        for known, leaf_pass, leaf_sums in ways:
+            with ThreadPoolExecutor(threads) as pool:
+                got, var = observables.summarize_with_variance(
+                    state,
+                    300,
+                    threshold,
+                    known,
+                    pool=pool if threads > 1 else None,
+                    batches=threads,
+                    leaf_pass=None if leaf_pass is None else functools.partial(leaf_pass, buffers=buffers),
+                    leaf_sums=leaf_sums,
+                    buffers=buffers,
+                )
+            for name, value in want.as_dict().items():
+                assert got.as_dict()[name] == value or _same_bits(got.as_dict()[name], value), name
+            assert _same_bits(var, variance)

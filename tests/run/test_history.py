@@ -314,22 +314,27 @@ def test_a_small_ensemble_run_long_stops_at_its_block_steps_with_the_same_record
     assert histories[0].convergence() == histories[1].convergence()
 
 
-@pytest.mark.parametrize("threads", ["1", "2"])
+@pytest.mark.parametrize(("threads", "chunk"), [("1", None), ("2", None), ("2", 1000)])
 def test_a_runs_report_and_history_equal_those_of_summarize_and_the_reference_variance(
-    monkeypatch, capsys, threads
+    monkeypatch, capsys, threads, chunk
 ):
     """Every number ``run --json`` reports (the rows, A, its errors, the verdict) is the same with the
     summaries and variances computed on the run's threads as with ``summarize`` and the history's own
-    variance, bit for bit; the runs differ only in their timings."""
+    variance, bit for bit; the runs differ only in their timings. Also past one summary chunk (shrunk
+    here to 1000 points: 3 chunks), where both add up their chunks' sums."""
     argv = run_argv(
         "--points", "3000", "--steps", "2500", "--seed", "4", "--threads", threads, "--json", "--quiet"
     )
     import warpratchet.ensemble
+    import warpratchet.history
     import warpratchet.kernels
     import warpratchet.observables
 
     for module in (warpratchet.ensemble, warpratchet.observables):  # many leaves, on the threads
         monkeypatch.setattr(module, "TREE_LEAF", 128)
+    if chunk is not None:
+        for module in (warpratchet.observables, warpratchet.history):
+            monkeypatch.setattr(module, "SUMMARY_CHUNK", chunk)
     passes = []  # the rows' per-point pass runs in the kernel (its FTLE computed there, where NumPy's)
 
     class RowPass(warpratchet.kernels.RowPass):

@@ -434,9 +434,9 @@ class RowPass:
         self.buffers = {}
         for name in ("chaotic_ftle", "chaotic_acc", "ambiguous_acc"):
             kept = buffers.get(f"row pass {name}")
-            if kept is None or kept.size != n:
+            if kept is None or kept.size < n:  # a summary's chunks differ in size: the largest
                 kept = buffers[f"row pass {name}"] = np.empty(n)
-            self.buffers[name] = kept
+            self.buffers[name] = kept[:n]
 
     def __call__(
         self,
