@@ -452,11 +452,12 @@ class Ensemble:
     ) -> Summary | None:
         """:func:`~warpratchet.observables.summarize_with_variance` of the current state on this
         ensemble's threads (the variance kept for :meth:`known_variance`), or None to leave the
-        summary to ``summarize``: a GPU, a value not finite.
+        summary to ``summarize``: a value not finite.
 
         During :meth:`run` the threads are the run's own, idle between its launches; outside a
-        run a pool lives for this summary only."""
-        if not wp.get_device(self.device).is_cpu or self.step < 1:
+        run a pool lives for this summary only. On a GPU the state is copied to the host once and
+        summarised there on the host's threads."""
+        if self.step < 1:
             return None
         if threshold is None:
             threshold = lyapunov_threshold(self.step, threshold_rule)

@@ -388,7 +388,9 @@ class History(Observer):
             self._pending = [n for n in self._pending if n > step]
             # the ensemble's summary at this step: computed once for every sink that needs it
             summary = ensemble.summary(self.threshold, self.threshold_rule, warn=False)
-            row = history_row(ensemble.views(), summary, getattr(ensemble, "known_variance", _none)(step))
+            variance = getattr(ensemble, "known_variance", _none)(step)
+            # the state only for a variance not known (off a GPU, views are a copy of the state)
+            row = history_row(ensemble.views() if variance is None else {}, summary, variance)
             for name in HISTORY_FIELDS:
                 self.rows[name].append(row[name])
 

@@ -16,7 +16,7 @@ import warp as wp
 
 from warpratchet import kernels, reference, theory
 from warpratchet.ensemble import Ensemble
-from warpratchet.observables import lyapunov
+from warpratchet.observables import lyapunov, summarize
 from warpratchet.params import MapParams
 from warpratchet.sumrule import IndicatorEnsemble
 
@@ -408,6 +408,34 @@ def test_every_warp_device_gives_the_reference_result(device):
             np.testing.assert_array_equal(got[name], expected[name], err_msg=name)
         else:
             np.testing.assert_allclose(got[name], expected[name], rtol=1e-14, atol=0, err_msg=name)
+
+
+@pytest.mark.parametrize("device", DEVICES)
+def test_a_summary_on_every_device_is_summarize_of_its_state_on_the_hosts_threads(device, monkeypatch):
+    """An ensemble's summary and its history variance are taken on the host's threads on every
+    device (off a GPU, from one copy of the state): the numbers of ``summarize`` and of the
+    history's own variance of that state, bit for bit, across more than one summary chunk too."""
+    import warpratchet.ensemble
+    import warpratchet.history
+    import warpratchet.observables
+
+    monkeypatch.setattr(warpratchet.observables, "TREE_LEAF", 1024)  # many leaves: on the threads
+    monkeypatch.setattr(warpratchet.ensemble, "TREE_LEAF", 1024)
+    for module in (warpratchet.observables, warpratchet.history):
+        monkeypatch.setattr(module, "SUMMARY_CHUNK", 20_000)  # 3 chunks
+    ens = Ensemble.sample(MapParams(3.0, 0.1, 0.01), 50_000, "torus", seed=2, threads=2, device=device)
+    ens.run(400)
+    calls = []
+    real = warpratchet.ensemble.summarize_with_variance
+    monkeypatch.setattr(
+        warpratchet.ensemble, "summarize_with_variance", lambda *a, **k: calls.append(k) or real(*a, **k)
+    )
+    got = ens.summary(warn=False)
+    state = ens.state()
+    assert len(calls) == 1 and calls[0]["pool"] is not None  # on a pool of the host's threads
+    assert got == summarize(state, ens.step)
+    variance = ens.known_variance(ens.step)
+    assert np.float64(variance).tobytes() == np.float64(warpratchet.history._variance(state)).tobytes()
 
 
 @pytest.mark.parametrize("device", DEVICES)
