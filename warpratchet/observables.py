@@ -461,8 +461,8 @@ def summarize_with_variance(
     and each sum is NumPy's pairwise sum of the chunk rebuilt from its leaves' sums
     (:func:`tree_total`); the chunks' sums are then put together as :func:`summarize` and the
     history's variance put them together. So every number is theirs. With more than one chunk the
-    per-point pass runs twice per chunk (the second time for the deviations from the means of all
-    chunks), so that the memory stays that of one chunk. ``batches``: how many pieces each pass of
+    per-point pass runs again for every chunk but the last (for the deviations from the means of
+    all chunks), so that the memory stays that of one chunk. ``batches``: how many pieces each pass of
     a chunk is cut into for the pool. ``threshold``: the FTLE threshold itself (a rule's is
     :func:`lyapunov_threshold`). Returns None where a value is not finite (:func:`summarize` says
     which, in its error).
@@ -625,11 +625,14 @@ def summarize_with_variance(
     means = summary_means(first) if needs_squares(first) else None
     # history's variance (history._variance): the mean from the chunks' sums as Python floats
     mean = math.fsum(float(part[1]) for part in firsts) / n if n >= 2 else math.nan
+    # The last chunk's gathered values and gains are still in the buffers; every other chunk's
+    # are made again (one chunk's memory). Its sums are then put together in the chunks' order.
+    seconds: list = [None] * len(bounds)
+    for index in reversed(range(len(bounds))):
+        part = firsts[index] if index == len(bounds) - 1 else first_pass(*bounds[index])
+        seconds[index] = second_pass(part[2], part[3], means, mean)
     second, squares = [], 0.0
-    for (lo, hi), part in zip(bounds, firsts, strict=True):
-        if len(bounds) > 1:  # the chunk's gathered values and gains again (one chunk's memory)
-            part = first_pass(lo, hi)
-        chunk_squares, gains = second_pass(part[2], part[3], means, mean)
+    for chunk_squares, gains in seconds:
         if chunk_squares is not None:
             second.append(chunk_squares)
         if gains is not None:
