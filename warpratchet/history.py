@@ -190,14 +190,15 @@ def _variance(state: Mapping[str, np.ndarray]) -> float:
 
 
 def history_row(
-    state: Mapping[str, np.ndarray], summary: Summary, variance: float | None = None
+    state: Mapping[str, np.ndarray] | None, summary: Summary, variance: float | None = None
 ) -> dict[str, Any]:
     """One history row (:data:`HISTORY_FIELDS`) of a state and its summary.
 
     Parameters
     ----------
-    state : dict of ndarray, shape (points,) each
-        The ensemble's state arrays (zero-copy views are fine: nothing is written).
+    state : dict of ndarray, shape (points,) each, or None
+        The ensemble's state arrays (zero-copy views are fine: nothing is written); read only for
+        the variance, so None where ``variance`` is given.
     summary : Summary
         :func:`~warpratchet.observables.summarize` of ``state`` at its global step (``>= 1``),
         with the run's threshold or rule: the row's first six fields are the summary's.
@@ -205,6 +206,8 @@ def history_row(
         The row's ``var_dp_all`` if the caller has it (:meth:`Ensemble.known_variance
         <warpratchet.ensemble.Ensemble.known_variance>`), else computed here.
     """
+    if state is None and variance is None:
+        raise ValueError("a history row needs the state or its variance")
     step = summary.step
     n_c = summary.chaotic_points
     # Var(p_n - p_0) over the chaotic points is n^2 Var(A_n) = n^2 N_c A_stderr^2: no second pass
@@ -390,7 +393,7 @@ class History(Observer):
             summary = ensemble.summary(self.threshold, self.threshold_rule, warn=False)
             variance = getattr(ensemble, "known_variance", _none)(step)
             # the state only for a variance not known (off a GPU, views are a copy of the state)
-            row = history_row(ensemble.views() if variance is None else {}, summary, variance)
+            row = history_row(ensemble.views() if variance is None else None, summary, variance)
             for name in HISTORY_FIELDS:
                 self.rows[name].append(row[name])
 
