@@ -80,6 +80,31 @@ def error_line(stderr: str) -> str:
     return lines[-1]
 
 
+def in_process(capture, *args: str, main=None) -> subprocess.CompletedProcess:
+    """``warpratchet ARGS`` through :func:`warpratchet.cli.main` in this process (what the installed
+    script calls; another command line's ``main(argv)`` with ``main``, e.g. ``viz``'s): the
+    :class:`subprocess.CompletedProcess` that :func:`cli` would give, for a test that needs only a
+    command's exit status and output, not a fresh interpreter, a signal or a kill.
+
+    ``capture`` is pytest's ``capfd`` (file descriptors 1 and 2, so also what HDF5 or Warp write
+    there) or ``capsys``. A warning nobody catches ends on stderr, formatted and filtered as a fresh
+    interpreter does (``DeprecationWarning`` and its kin hidden), instead of in pytest's summary."""
+    import warnings
+
+    if main is None:
+        from warpratchet.cli import main
+
+    capture.readouterr()  # what came before is not this command's
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        for category in (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning):
+            warnings.simplefilter("ignore", category)
+        code = main(list(args))
+    out, err = capture.readouterr()
+    err += "".join(warnings.formatwarning(w.message, w.category, w.filename, w.lineno) for w in caught)
+    return subprocess.CompletedProcess([main.__module__, *args], code, out, err)
+
+
 def refused(capsys, argv: list[str]) -> str:
     """``warpratchet ARGV`` in this process must refuse: exit 2 and one error line on stderr (returned),
     after a short usage line if a flag was refused while parsing."""
