@@ -2,9 +2,10 @@
 ``benchmarks/indicators_overhead.py`` (issue 12: the indicators kernel against ``advance_map``),
 ``kernel_ceilings.py`` and the other benchmarks' ``--quick`` runs.
 
-Runs ``throughput.py --quick --json`` once in a subprocess (20 000 points x 1000 steps; about
-5-10 s with the Numba JIT and the gcc build) and checks the JSON structure, the ratios, the
-state-size bound and that every implementation's end state equals warpratchet's bit for bit.
+Runs ``throughput.py --quick --json`` once (:func:`support.benchmark`, in this process; 20 000
+points x 1000 steps; about 5-10 s with the Numba JIT and the gcc build) and checks the JSON
+structure, the ratios, the state-size bound and that every implementation's end state equals
+warpratchet's bit for bit.
 No timing assertions: rates are only checked to be positive and consistent with steps/seconds.
 """
 
@@ -27,7 +28,7 @@ QUICK_POINTS, QUICK_STEPS = 20_000, 1000
 
 
 def _run(*args: str) -> subprocess.CompletedProcess:
-    return benchmark(SCRIPT.name, *args, timeout=600)
+    return benchmark(SCRIPT.name, *args)
 
 
 @pytest.fixture(scope="module")

@@ -13,10 +13,11 @@ twice the steps stays twice), the same for ``points=``/``steps=``/``.run(N`` in 
 says, and ``python benchmarks/...`` runs the checkout's script.
 
 A plain ``warpratchet ...`` or ``python -m warpratchet_viz ...`` command (no pipe, redirection or
-quoting; no rerun recording, which closes at process exit) runs in one Python process per doc
-(:data:`WORKER`, in the same folder), with its own file descriptors 0-2: its exit status and
-output are the command's, without an interpreter, Warp and its kernels started again for each
-(test_cli_core starts the script itself). Everything else runs in its own process.
+quoting; no rerun recording, which closes at process exit) and each Python block (in fresh globals,
+as ``python -c`` runs it) run in one Python process per doc (:data:`WORKER`, in the same folder),
+with their own file descriptors 0-2: the exit status and output are the command's, without an
+interpreter, Warp and its kernels started again for each (test_cli_core starts the script itself).
+Everything else runs in its own process.
 
 Left out, each for its stated reason (:data:`SKIPPED`): installs, the test suite itself, the
 rerun viewer, a Dask cluster or batch system, and the two analyses that take minutes.
@@ -108,17 +109,22 @@ IN_WORKER = re.compile(
     r"(warpratchet (?!.*--rerun)|python -m warpratchet_viz(\.report)? (?!scenes|record))[^|<>;&`$()'\"*?~\\]*"
 )
 
-#: Runs each JSON line of words on stdin, ``warpratchet ARGS`` as ``warpratchet.cli.main(ARGS)``
-#: (what the installed script calls) and ``python -m MODULE ARGS`` as :func:`runpy.run_module`;
-#: its stdin empty and its stdout and stderr (file descriptors 1, 2: Python's and any library's)
-#: in temporary files. Answers with a JSON line ``{"returncode", "stdout", "stderr"}`` on the
-#: stdout it started with.
+#: Runs each JSON line on stdin: a list of words, ``warpratchet ARGS`` as
+#: ``warpratchet.cli.main(ARGS)`` (what the installed script calls) and ``python -m MODULE ARGS`` as
+#: :func:`runpy.run_module`; a string, a Python block as ``python -c`` runs it (``__main__``, fresh
+#: globals). Its stdin empty and its stdout and stderr (file descriptors 1, 2: Python's and any
+#: library's) in temporary files. Answers with a JSON line ``{"returncode", "stdout", "stderr"}``
+#: on the stdout it started with.
 WORKER = r"""
 import json, os, runpy, sys, tempfile, traceback
 from warpratchet.cli import main
 
 
 def command(words):
+    if isinstance(words, str):
+        sys.argv = ["-c"]
+        exec(compile(words, "<string>", "exec"), {"__name__": "__main__", "__builtins__": __builtins__})
+        return 0
     if words[0] == "warpratchet":
         return main(words[1:])
     sys.argv = words[2:]
@@ -167,8 +173,9 @@ class Worker:
         self.proc.stdout.close()
         assert kind is not None or returncode == 0, f"the worker process exited {returncode}"
 
-    def run(self, command: str, timeout: float = 900) -> subprocess.CompletedProcess:
-        self.proc.stdin.write(json.dumps(shlex.split(command)) + "\n")
+    def run(self, command: str, timeout: float = 900, python: bool = False) -> subprocess.CompletedProcess:
+        """The shell command ``command``, or with ``python`` the Python block ``command``."""
+        self.proc.stdin.write(json.dumps(command if python else shlex.split(command)) + "\n")
         self.proc.stdin.flush()
         if not select.select([self.proc.stdout], [], [], timeout)[0]:
             raise subprocess.TimeoutExpired(command, timeout)
@@ -196,12 +203,10 @@ def test_the_doc_runs_in_one_empty_folder(doc, tmp_path):
                 skipped.append(why)
                 continue
             code = shrink(code)
-            argv = (
-                ["bash", "-euo", "pipefail", "-c", code] if kind == "bash" else [sys.executable, "-c", code]
-            )
-            if kind == "bash" and IN_WORKER.fullmatch(code):
-                proc = worker.run(code)
+            if kind == "python" or IN_WORKER.fullmatch(code):
+                proc = worker.run(code, python=kind == "python")
             else:
+                argv = ["bash", "-euo", "pipefail", "-c", code]
                 proc = subprocess.run(
                     argv, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900
                 )

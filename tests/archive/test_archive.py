@@ -19,9 +19,9 @@ from support import (
     ARCHIVE_DOC,
     Capture,
     assert_one_line_error,
-    cli,
     documented_names,
     documented_optional,
+    in_process,
     quick_benchmark,
     refused,
     run_argv,
@@ -227,13 +227,13 @@ def test_schedule_lands_chunk_ends_on_snapshots_and_checkpoints():
         schedule(100, snapshot_every=-1)
 
 
-def test_refuses_to_overwrite_and_force_replaces(tmp_path):
+def test_refuses_to_overwrite_and_force_replaces(tmp_path, capfd):
     path = tmp_path / "precious.h5"
     path.write_bytes(b"user data")
     with pytest.raises(ArchiveError, match="exists; refusing to overwrite"):
         ArchiveSink(path, fresh())
     assert path.read_bytes() == b"user data"
-    proc = cli(*run_argv("--points", "10", "--steps", "10", "--out", str(path), "--quiet"))
+    proc = in_process(capfd, *run_argv("--points", "10", "--steps", "10", "--out", str(path), "--quiet"))
     assert_one_line_error(proc)
     assert "--force" in proc.stderr and path.read_bytes() == b"user data"
     ArchiveSink(path, fresh(), force=True).close()
@@ -252,14 +252,14 @@ def test_file_in_use_is_refused(tmp_path):
     ArchiveSink.resume(path)[0].close()  # free again once the writer closed it
 
 
-def test_incompatible_format_version_is_refused(tmp_path, archived):
+def test_incompatible_format_version_is_refused(tmp_path, archived, capfd):
     path = tmp_path / "future.h5"
     shutil.copy(archived[0], path)
     with h5py.File(path, "r+") as f:
         f.attrs["format_version"] = 3
     with pytest.raises(ArchiveError, match="format version 3 is not supported"):
         open_archive(path)
-    assert_one_line_error(cli("resume", str(path), "--steps", "5000"))
+    assert_one_line_error(in_process(capfd, "resume", str(path), "--steps", "5000"))
     with pytest.raises(ArchiveError, match="not a warpratchet archive"):
         with h5py.File(tmp_path / "other.h5", "w") as f:
             f["x"] = 1
@@ -342,29 +342,29 @@ def _flip(src, dst, offset, count=8):
         fh.write(bytes(b ^ 0xA5 for b in data))
 
 
-def test_truncated_file_is_a_clear_error(tmp_path, archived):
+def test_truncated_file_is_a_clear_error(tmp_path, archived, capfd):
     path = tmp_path / "cut.h5"
     data = Path(archived[0]).read_bytes()
     path.write_bytes(data[: len(data) // 2])
     with pytest.raises(ArchiveError, match="truncated file.*the file is truncated or corrupted"):
         _read_all(path)
-    assert_one_line_error(cli("inspect", str(path)))
-    assert_one_line_error(cli("resume", str(path), "--steps", "5000", "--quiet"))
+    assert_one_line_error(in_process(capfd, "inspect", str(path)))
+    assert_one_line_error(in_process(capfd, "resume", str(path), "--steps", "5000", "--quiet"))
     assert Path(path).read_bytes() == data[: len(data) // 2]  # a failed resume touches nothing
 
 
-def test_a_file_that_is_not_hdf5_is_named_so_not_called_truncated(tmp_path):
+def test_a_file_that_is_not_hdf5_is_named_so_not_called_truncated(tmp_path, capfd):
     path = tmp_path / "notes.h5"
     path.write_text("not an archive\n")
     with pytest.raises(ArchiveError, match="notes.h5 is not an HDF5 file") as exc:
         open_archive(path)
     assert "truncated" not in str(exc.value)
-    proc = cli("inspect", str(path))
+    proc = in_process(capfd, "inspect", str(path))
     assert_one_line_error(proc)
     assert "not an HDF5 file" in proc.stderr
 
 
-def test_truncated_file_of_a_killed_writer_errors_or_recovers_truthfully(tmp_path, killed):
+def test_truncated_file_of_a_killed_writer_errors_or_recovers_truthfully(tmp_path, killed, capfd):
     """HDF5 skips its size check in SWMR mode: what is missing must still never pass unnoticed."""
     src, _, states = killed
     data = Path(src).read_bytes()
@@ -379,7 +379,7 @@ def test_truncated_file_of_a_killed_writer_errors_or_recovers_truthfully(tmp_pat
         state, step = got["checkpoint"]
         assert notes and "recovered" in notes[0] and step < 1000
         assert same_state(state, states[step])
-    proc = cli("inspect", str(tmp_path / "cut0.5.h5"))
+    proc = in_process(capfd, "inspect", str(tmp_path / "cut0.5.h5"))
     assert "Traceback" not in proc.stderr
     if proc.returncode == 0:
         assert "warpratchet: warning:" in proc.stderr and "recovered" in proc.stderr
@@ -415,7 +415,7 @@ def test_flipped_bytes_never_give_silent_wrong_data(tmp_path, request, which):
     assert "error" in outcomes  # flips do hit data
 
 
-def test_flipped_bytes_in_the_middle_via_cli(tmp_path, archived):
+def test_flipped_bytes_in_the_middle_via_cli(tmp_path, archived, capfd):
     path = tmp_path / "mid.h5"
     size = os.path.getsize(archived[0])
     _flip(archived[0], path, size // 2, 16)
@@ -423,7 +423,7 @@ def test_flipped_bytes_in_the_middle_via_cli(tmp_path, archived):
         ("inspect", str(path), "--json"),
         ("resume", str(path), "--steps", "1200", "--quiet", "--json"),
     ):
-        proc = cli(*args)
+        proc = in_process(capfd, *args)
         assert "Traceback" not in proc.stderr
         if proc.returncode == 2:
             assert_one_line_error(proc)
@@ -436,7 +436,7 @@ def test_flipped_bytes_in_the_middle_via_cli(tmp_path, archived):
             assert report["steps"] == 1200 and same_state(arc.ensemble().state(), ref.state())
 
 
-def test_damaged_checkpoint_falls_back_to_the_previous_one(tmp_path, archived):
+def test_damaged_checkpoint_falls_back_to_the_previous_one(tmp_path, archived, capfd):
     src, _, states = archived
     path = tmp_path / "bad.h5"
     shutil.copy(src, path)
@@ -453,7 +453,7 @@ def test_damaged_checkpoint_falls_back_to_the_previous_one(tmp_path, archived):
         with open_archive(path) as arc:
             ens = arc.ensemble()
     assert ens.step == 800 and same_state(ens.state(), states[800])
-    proc = cli("resume", str(path), "--steps", "1500", "--quiet", "--json")
+    proc = in_process(capfd, "resume", str(path), "--steps", "1500", "--quiet", "--json")
     assert proc.returncode == 0, proc.stderr
     assert "warpratchet: warning:" in proc.stderr and "step 800" in proc.stderr
     assert json.loads(proc.stdout)["steps"] == 1500

@@ -19,7 +19,7 @@ import subprocess
 import h5py
 import numpy as np
 import pytest
-from support import MAP_FLAGS, cli
+from support import MAP_FLAGS, in_process
 
 from warpratchet import Ensemble, MapParams, open_archive
 from warpratchet.archive import ArchiveError, ArchiveSink
@@ -31,8 +31,9 @@ def archive(tmp_path_factory):
     """A CLI archive with snapshots (the last at the final step) and the history, named ``*.nc``."""
     path = tmp_path_factory.mktemp("standalone") / "run.nc"
     flags = ("--points", "300", "--steps", "2000", "--snapshot-every", "500", "--snapshot-points", "40")
-    proc = cli("run", *MAP_FLAGS, *flags, "--quiet", "--out", str(path))
-    assert proc.returncode == 0, proc.stderr
+    from warpratchet.cli import main
+
+    assert main(["run", *MAP_FLAGS, *flags, "--quiet", "--out", str(path)]) == 0
     return path
 
 
@@ -98,11 +99,11 @@ def _phony(path) -> list[str]:
     return found
 
 
-def test_every_group_has_named_dimensions(archive, tmp_path):
+def test_every_group_has_named_dimensions(archive, tmp_path, capfd):
     assert _phony(archive) == []
     transport = tmp_path / "transport.nc"
     flags = ("--points", "100", "--steps", "300", "--quiet", "--transport", "--out", str(transport))
-    assert cli("run", *MAP_FLAGS, *flags).returncode == 0
+    assert in_process(capfd, "run", *MAP_FLAGS, *flags).returncode == 0
     assert _phony(transport) == []
 
 

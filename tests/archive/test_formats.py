@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from support import cli, exact_rows, same_state
+from support import exact_rows, in_process, same_state
 
 from warpratchet import Ensemble, MapParams, open_archive, summarize
 from warpratchet.archive import SERIES_FIELDS, SNAPSHOT_FIELDS, ArchiveSink, run_to
@@ -94,8 +94,8 @@ def test_archive_v1_opens_with_its_run(reference):
         assert same_state(arc.ensemble(threads=1).state(), fresh().run(STEPS, chunk_steps=64).state())
 
 
-def test_inspect_prints_archive_v1():
-    proc = cli("inspect", str(ARCHIVE), "--json")
+def test_inspect_prints_archive_v1(capfd):
+    proc = in_process(capfd, "inspect", str(ARCHIVE), "--json")
     assert proc.returncode == 0, proc.stderr
     info = json.loads(proc.stdout)
     keys = {"path", "format", "format_version", "created", "params", "settings", "versions"}
@@ -109,7 +109,7 @@ def test_inspect_prints_archive_v1():
     assert (info["rows"], info["snapshots"], info["params"]["K"]) == (8, 4, 3.0)
     assert info["latest"]["A"] == 0.14617400228230937
     assert info["format_minor"] == 0  # absent in version 1
-    proc = cli("inspect", str(ARCHIVE))
+    proc = in_process(capfd, "inspect", str(ARCHIVE))
     assert proc.returncode == 0, proc.stderr
     assert "checkpoint at step 512" in proc.stdout and "K = 3.0" in proc.stdout
 

@@ -15,7 +15,7 @@ import warnings
 import h5py
 import numpy as np
 import pytest
-from support import cli, flip_bit, same_state
+from support import flip_bit, in_process, same_state
 
 from warpratchet import Ensemble, MapParams, Observer, open_archive
 from warpratchet.archive import (
@@ -46,21 +46,21 @@ def archived(tmp_path_factory):
     return path
 
 
-def test_verify_exit_status(archived, tmp_path, capsys):
-    """In this process (``main``), but the missing file, whose one line a fresh process checks."""
+def test_verify_exit_status(archived, tmp_path, capfd):
+    """In this process (``main``); the missing file's one line read from file descriptor 2."""
     assert main(["verify", str(archived)]) == 0
     assert main(["verify", os.path.join(DATA, "archive_v1.h5")]) == 0
     assert main(["verify", os.path.join(DATA, "sweep_v1.h5")]) == 0
-    proc = cli("verify", str(tmp_path / "missing.h5"))
+    proc = in_process(capfd, "verify", str(tmp_path / "missing.h5"))
     assert proc.returncode == 2 and "no such file" in proc.stderr and "Traceback" not in proc.stderr
     (tmp_path / "notes.txt").write_text("hello")
     assert main(["verify", str(tmp_path / "notes.txt")]) == 2
     with h5py.File(tmp_path / "other.h5", "w") as f:
         f["x"] = 1
     assert main(["verify", str(tmp_path / "other.h5")]) == 2
-    capsys.readouterr()
+    capfd.readouterr()
     code = main(["verify", str(archived), "--json"])
-    report = json.loads(capsys.readouterr().out)
+    report = json.loads(capfd.readouterr().out)
     assert code == 0 and report["ok"] and report["checked"]["datasets"] > 40
 
 
@@ -110,14 +110,14 @@ def test_resume_skips_a_damaged_snapshot_and_initial_state(archived, tmp_path):
     assert main(["verify", str(path)]) == 0
 
 
-def test_cli_resume_says_what_it_skipped(archived, tmp_path):
+def test_cli_resume_says_what_it_skipped(archived, tmp_path, capfd):
     path = tmp_path / "bad.h5"
     shutil.copy(archived, path)
     with h5py.File(path, "r") as f:
         offset = f["series/A"].id.get_chunk_info(0).byte_offset
     flip_bit(path, tmp_path / "tmp.h5", offset + 9, 0)
     os.replace(tmp_path / "tmp.h5", path)
-    proc = cli("resume", str(path), "--steps", "1100", "--quiet", "--json")
+    proc = in_process(capfd, "resume", str(path), "--steps", "1100", "--quiet", "--json")
     assert proc.returncode == 0, proc.stderr
     assert "warpratchet: warning:" in proc.stderr and "damaged row(s) of /series/A" in proc.stderr
     assert json.loads(proc.stdout)["steps"] == 1100

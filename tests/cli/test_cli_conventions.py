@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 
 import pytest
-from support import MAP_FLAGS, cli, launch
+from support import MAP_FLAGS, cli, in_process, launch
 
 import warpratchet
 from warpratchet.cli import EXAMPLES, SUBCOMMANDS, build_parser, main
@@ -35,9 +35,9 @@ def test_every_subcommand_help_has_a_description_and_examples(name, capsys):
     assert "examples:" in out and all(line in out for line in EXAMPLES[name])
 
 
-def test_parse_errors_are_a_short_usage_and_one_error_line_with_no_doubled_prefix():
+def test_parse_errors_are_a_short_usage_and_one_error_line_with_no_doubled_prefix(capfd):
     """argparse's convention (issue 14.7), kept short: one usage line, then the one error line."""
-    done = cli("run", *MAP_FLAGS, "--points", "0", "--quiet")
+    done = in_process(capfd, "run", *MAP_FLAGS, "--points", "0", "--quiet")
     assert done.returncode == 2 and done.stdout == ""
     [usage, line] = done.stderr.strip().splitlines()
     assert line.startswith("warpratchet run: error: argument --points: points = 0 is outside")

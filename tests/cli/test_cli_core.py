@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from support import cli, error_line
+from support import cli, error_line, in_process
 
 from warpratchet import theory
 from warpratchet.cli import main
@@ -41,8 +41,9 @@ def test_theory_json(capsys):
     assert out["A"] is None and out["S_C"] is None and out["domain"] in ("LR", "L", "R", "none")
 
 
-def test_acceptance_run_agrees_with_theory():
-    """Issue acceptance: the documented command, in a subprocess, against `warpratchet theory`."""
+def test_acceptance_run_agrees_with_theory(capfd):
+    """Issue acceptance: the documented command, in a subprocess, against `warpratchet theory` (in
+    this process)."""
     run = cli(
         "run", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--points", "10000", "--steps", "120000", "--json"
     )
@@ -50,7 +51,7 @@ def test_acceptance_run_agrees_with_theory():
     assert run.stderr == ""  # the progress bar is drawn only on a terminal
     report = json.loads(run.stdout)
     assert RUN_KEYS <= set(report)
-    th = json.loads(cli("theory", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--json").stdout)
+    th = json.loads(in_process(capfd, "theory", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--json").stdout)
     # Strip ensemble (the paper's protocol): bias bound as in test_statistics' strip test.
     excluded = report["points"] - report["chaotic_points"]
     bias = 200 / report["steps"] + 2 * excluded / report["chaotic_points"]
@@ -76,8 +77,9 @@ def test_acceptance_run_agrees_with_theory():
         (["bogus"], "bogus"),
     ],
 )
-def test_bad_input_exits_2_with_one_line_and_no_traceback(args, needle):
-    result = cli(*args, "--quiet") if args[0] == "run" else cli(*args)
+def test_bad_input_exits_2_with_one_line_and_no_traceback(args, needle, capfd):
+    """Through the command's main in this process: a traceback would be an exception raised here."""
+    result = in_process(capfd, *args, "--quiet") if args[0] == "run" else in_process(capfd, *args)
     assert result.returncode == 2, result.stderr
     line = error_line(result.stderr)  # after a short usage line if refused while parsing
     assert needle in line

@@ -7,19 +7,19 @@ import re
 from pathlib import Path
 
 import pytest
-from support import assert_one_line_error, cli, refused
+from support import assert_one_line_error, in_process, refused
 
 from warpratchet import MapParams
 
 
-def test_period_one_orbits_are_the_closed_form():
+def test_period_one_orbits_are_the_closed_form(capfd):
     """Issue 16's acceptance: the elliptic period-1 orbits at K = 3 have R = 0.75 = K/4.
 
     Period-1 points have q = 0 and K f(x) = k: in the middle piece x = c - k/K (Eq. xp) with
     R = K/4, elliptic for K < 4; in the left and right pieces x = k/(K l1), 1 + k/(K l2), with
     R = -K l/4 < 0, hyperbolic.
     """
-    proc = cli("orbits", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--period", "1", "--json")
+    proc = in_process(capfd, "orbits", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--period", "1", "--json")
     assert proc.returncode == 0, proc.stderr
     report = json.loads(proc.stdout)
     p = MapParams(3.0, 0.1, 0.01)
@@ -34,12 +34,12 @@ def test_period_one_orbits_are_the_closed_form():
         k, x = orbit["winding"], orbit["x"][0]
         slope = p.l1 if x <= p.b1 else p.l2
         assert orbit["residue"] == pytest.approx(-p.K * slope / 4, rel=1e-13)
-    text = cli("orbits", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--period", "1").stdout
+    text = in_process(capfd, "orbits", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--period", "1").stdout
     assert text.startswith("period-1 orbits at K = 3.0") and text.count("elliptic") == 4  # title + 3 rows
 
 
-def test_a_period_that_would_take_minutes_needs_long():
-    proc = cli("orbits", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--period", "11")
+def test_a_period_that_would_take_minutes_needs_long(capfd):
+    proc = in_process(capfd, "orbits", "--K", "3", "--b1", "0.1", "--b2", "0.01", "--period", "11")
     assert_one_line_error(proc)
     assert "period 11 would take about" in proc.stderr and "pass --long to run it" in proc.stderr
 

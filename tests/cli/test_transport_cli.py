@@ -11,7 +11,7 @@ import signal
 import time
 
 import numpy as np
-from support import MAP_FLAGS, archive_rows, cli, launch, refused, same_history
+from support import MAP_FLAGS, archive_rows, in_process, launch, refused, same_history
 from support import documented_names as _documented_names
 from support import documented_optional as _documented_optional
 from support import written_names as _written_names
@@ -25,8 +25,10 @@ RUN = ["run", *MAP_FLAGS, "--points", str(POINTS), "--seed", str(SEED), "--steps
 RUN += ["--chunk-steps", "100", "--checkpoint-every", "500", "--quiet", "--json", "--transport"]
 
 
-def test_json_has_the_histograms_mu_and_tail_exponents():
-    proc = cli("run", *MAP_FLAGS, "--points", "500", "--steps", "3000", "--quiet", "--json", "--transport")
+def test_json_has_the_histograms_mu_and_tail_exponents(capfd):
+    proc = in_process(
+        capfd, "run", *MAP_FLAGS, "--points", "500", "--steps", "3000", "--quiet", "--json", "--transport"
+    )
     assert proc.returncode == 0, proc.stderr
     t = json.loads(proc.stdout)["transport"]
     assert set(t["return_times"]) == {"edges", "counts", "open"}
@@ -40,11 +42,14 @@ def test_json_has_the_histograms_mu_and_tail_exponents():
     h = ens.histograms()
     assert t["return_times"]["counts"] == h.return_times[: len(t["return_times"]["counts"])].tolist()
     assert t["flights"]["counts_plus"] == h.flights_plus[: len(t["flights"]["counts_plus"])].tolist()
-    text = cli("run", *MAP_FLAGS, "--points", "500", "--steps", "3000", "--quiet", "--transport").stdout
+    text = in_process(
+        capfd, "run", *MAP_FLAGS, "--points", "500", "--steps", "3000", "--quiet", "--transport"
+    ).stdout
     assert "mu          =" in text and "flights +" in text and "returns" in text
 
 
-def test_a_killed_run_resumed_equals_an_uninterrupted_one_bit_for_bit(tmp_path):
+def test_a_killed_run_resumed_equals_an_uninterrupted_one_bit_for_bit(tmp_path, capfd):
+    """The run killed in a fresh process; the same command again and the reference in this one."""
     whole, killed = str(tmp_path / "whole.h5"), str(tmp_path / "killed.h5")
     proc = launch(*RUN, "--out", killed)
     start = time.monotonic()
@@ -54,8 +59,8 @@ def test_a_killed_run_resumed_equals_an_uninterrupted_one_bit_for_bit(tmp_path):
     proc.communicate(timeout=900)
     with open_archive(killed) as arc:
         assert 0 < arc.checkpoint_step < STEPS  # killed partway, with a checkpoint to resume from
-    again = cli(*RUN, "--out", killed)
-    reference = cli(*RUN, "--out", whole)
+    again = in_process(capfd, *RUN, "--out", killed)
+    reference = in_process(capfd, *RUN, "--out", whole)
     assert again.returncode == 0 and reference.returncode == 0, again.stderr + reference.stderr
     got, expected = json.loads(again.stdout), json.loads(reference.stdout)
     assert got["transport"] == expected["transport"] and got["A"] == expected["A"]
@@ -75,33 +80,35 @@ def test_a_killed_run_resumed_equals_an_uninterrupted_one_bit_for_bit(tmp_path):
     assert verify_archive(killed)[0] == []
 
 
-def test_transport_and_plain_archives_are_different_runs(tmp_path, capsys):
+def test_transport_and_plain_archives_are_different_runs(tmp_path, capfd):
     out = str(tmp_path / "run.h5")
     small = ["run", *MAP_FLAGS, "--points", "100", "--steps", "300", "--quiet", "--out", out]
-    assert cli(*small).returncode == 0
-    assert "(transport is False in the file, True requested)" in refused(capsys, [*small, "--transport"])
+    assert in_process(capfd, *small).returncode == 0
+    assert "(transport is False in the file, True requested)" in refused(capfd, [*small, "--transport"])
 
 
-def test_docs_match_a_transport_archive(tmp_path):
+def test_docs_match_a_transport_archive(tmp_path, capfd):
     """docs/archive.md lists exactly what a transport archive writes (the plain names: test_archive)."""
     out = tmp_path / "run.h5"
     small = ["run", *MAP_FLAGS, "--points", "100", "--steps", "300", "--quiet", "--transport", "--out"]
-    assert cli(*small, str(out)).returncode == 0
+    assert in_process(capfd, *small, str(out)).returncode == 0
     documented, written = _documented_names(), _written_names(out)
     assert {name for name in documented if name.startswith("/transport")} >= {"/transport/b/spread"}
     assert documented - written <= _documented_optional(), "documented but not written"
     assert written - documented == set(), "written but not documented"
 
 
-def test_mu_counts_the_chaotic_points_of_the_runs_threshold_rule(tmp_path):
+def test_mu_counts_the_chaotic_points_of_the_runs_threshold_rule(tmp_path, capfd):
     """``--threshold-rule positive`` classifies the spread's points as History does, also after a
     resume from the archive (the spread used to take the strict rule whatever the run's)."""
     args = (*MAP_FLAGS, "--points", "2000", "--quiet", "--json", "--transport")
     args = (*args, "--threshold-rule", "positive")
-    whole = json.loads(cli("run", *args, "--steps", "3000").stdout)["transport"]
+    whole = json.loads(in_process(capfd, "run", *args, "--steps", "3000").stdout)["transport"]
     path = str(tmp_path / "t.h5")
-    assert cli("run", *args, "--steps", "1500", "--out", path).returncode == 0
-    resumed = json.loads(cli("run", *args, "--steps", "3000", "--out", path).stdout)["transport"]
+    assert in_process(capfd, "run", *args, "--steps", "1500", "--out", path).returncode == 0
+    resumed = json.loads(in_process(capfd, "run", *args, "--steps", "3000", "--out", path).stdout)[
+        "transport"
+    ]
     mu = {}
     for rule in ("strict", "positive"):
         ens = TransportEnsemble.sample(MapParams(3.0, 0.1, 0.01), 2000, "strip", 0)

@@ -12,7 +12,7 @@ import json
 
 import h5py
 import pytest
-from support import MAP_FLAGS, cli, refused, same_state
+from support import MAP_FLAGS, in_process, refused, same_state
 
 from warpratchet import Ensemble, MapParams, Observer
 from warpratchet.archive import ArchiveSink, _writer, open_archive
@@ -98,10 +98,10 @@ def test_a_cadence_outside_its_range_is_refused(tmp_path, value):
     assert not (tmp_path / "a.h5").exists()
 
 
-def test_the_cli_flag_sets_the_cadence_and_needs_out(tmp_path, capsys):
-    """The run in a fresh process, the refusals in this one."""
+def test_the_cli_flag_sets_the_cadence_and_needs_out(tmp_path, capfd):
     path = tmp_path / "r.h5"
-    proc = cli(
+    proc = in_process(
+        capfd,
         "run",
         *MAP_FLAGS,
         "--points",
@@ -117,28 +117,32 @@ def test_the_cli_flag_sets_the_cadence_and_needs_out(tmp_path, capsys):
     with open_archive(path) as arc:
         assert arc.settings["checkpoint_seconds"] == 5.0
     line = refused(
-        capsys, ["run", *MAP_FLAGS, "--points", "100", "--steps", "200", "--checkpoint-seconds", "5"]
+        capfd, ["run", *MAP_FLAGS, "--points", "100", "--steps", "200", "--checkpoint-seconds", "5"]
     )
     assert "--checkpoint-seconds needs --out FILE" in line
     line = refused(
-        capsys,
+        capfd,
         ["run", *MAP_FLAGS, "--points", "100", "--out", str(tmp_path / "s.h5"), "--checkpoint-seconds", "0"],
     )
     assert "checkpoint_seconds = 0.0 is outside the allowed range" in line
     assert not (tmp_path / "s.h5").exists()
 
 
-def test_resume_to_the_step_an_archive_holds_reports_it_and_exits_0(tmp_path, capsys):
-    """``resume --steps N`` again on an archive at N is idempotent, as ``run --out`` is (the run and
-    the first resume in fresh processes, the second resume and the refusal in this one)."""
+def test_resume_to_the_step_an_archive_holds_reports_it_and_exits_0(tmp_path, capfd):
+    """``resume --steps N`` again on an archive at N is idempotent, as ``run --out`` is."""
     from warpratchet.cli import main
 
     path = tmp_path / "r.h5"
-    assert cli("run", *MAP_FLAGS, "--points", "200", "--steps", "600", "--out", str(path)).returncode == 0
-    first = cli("resume", str(path), "--steps", "900", "--json")
+    assert (
+        in_process(
+            capfd, "run", *MAP_FLAGS, "--points", "200", "--steps", "600", "--out", str(path)
+        ).returncode
+        == 0
+    )
+    first = in_process(capfd, "resume", str(path), "--steps", "900", "--json")
     assert first.returncode == 0, first.stderr
     before = path.read_bytes()
-    code, again = main(["resume", str(path), "--steps", "900", "--json"]), capsys.readouterr()
+    code, again = main(["resume", str(path), "--steps", "900", "--json"]), capfd.readouterr()
     assert code == 0, again.err
     assert again.err.strip() == f"warpratchet: {path} holds all 900 steps already: its report, nothing run"
     assert path.read_bytes() == before  # nothing touched
@@ -146,11 +150,11 @@ def test_resume_to_the_step_an_archive_holds_reports_it_and_exits_0(tmp_path, ca
     assert (
         report["steps"] == 900 and report["A"] == original["A"] and report["history"] == original["history"]
     )
-    behind = refused(capsys, ["resume", str(path), "--steps", "300"])
+    behind = refused(capfd, ["resume", str(path), "--steps", "300"])
     assert "--steps 300 is behind the archive's checkpoint at step 900" in behind
 
 
-def test_inspect_reports_progress_at_the_checkpoint_and_at_the_newest_row(tmp_path):
+def test_inspect_reports_progress_at_the_checkpoint_and_at_the_newest_row(tmp_path, capfd):
     """A run killed between checkpoints: its rows reach step 300, a rerun keeps step 0."""
     path = tmp_path / "r.h5"
     ens = Ensemble.sample(PARAMS, 200, seed=3)
@@ -164,7 +168,7 @@ def test_inspect_reports_progress_at_the_checkpoint_and_at_the_newest_row(tmp_pa
         info = arc.info()
     assert (info["checkpoint_step"], info["done"], info["latest_done"]) == (0, 0.0, 0.3)
     assert info["eta_seconds"] == pytest.approx(700 / (300 / 1.5))  # from the newest row
-    text = cli("inspect", str(path)).stdout
+    text = in_process(capfd, "inspect", str(path)).stdout
     assert (
         "target: step 1000, 0.0% done at the checkpoint (where a rerun continues), 30.0% at the newest row"
         in text

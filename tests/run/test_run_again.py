@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 import pytest
-from support import MAP_FLAGS, archive_rows, cli, launch
+from support import MAP_FLAGS, archive_rows, in_process, launch
 
 from warpratchet import Ensemble, MapParams, Observer, summarize
 from warpratchet._files import writer_marked
@@ -29,9 +29,9 @@ RUN = ["run", *MAP_FLAGS, "--points", str(POINTS), "--seed", str(SEED), "--steps
 RUN += ["--chunk-steps", "100", "--checkpoint-every", "500", "--quiet", "--json"]
 
 
-def test_the_same_command_again_resumes(tmp_path, capsys):
-    """The run, its resume and the completed run again in fresh processes; ``inspect`` (read-only)
-    runs in this process."""
+def test_the_same_command_again_resumes(tmp_path, capfd):
+    """The run interrupted in a fresh process; ``inspect``, the resume and the completed run again
+    in this one."""
     from warpratchet.cli import main
 
     out = str(tmp_path / "run.h5")
@@ -46,11 +46,11 @@ def test_the_same_command_again_resumes(tmp_path, capsys):
     assert "Traceback" not in err and f"{out} keeps the checkpoint at step" in err
     assert "run the same command again to continue" in err
     assert main(["inspect", out, "--json"]) == 0
-    info = json.loads(capsys.readouterr().out)
+    info = json.loads(capfd.readouterr().out)
     assert info["target_step"] == STEPS and 0 < info["done"] < 1 and info["eta_seconds"] > 0
-    assert main(["inspect", out]) == 0 and "% done" in capsys.readouterr().out
+    assert main(["inspect", out]) == 0 and "% done" in capfd.readouterr().out
 
-    again = cli(*RUN, "--out", out)
+    again = in_process(capfd, *RUN, "--out", out)
     assert again.returncode == 0, again.stderr
     report = json.loads(again.stdout)
     ref = Ensemble.sample(MapParams(3.0, 0.1, 0.01), POINTS, "strip", SEED).run(STEPS)
@@ -66,32 +66,32 @@ def test_the_same_command_again_resumes(tmp_path, capsys):
 
     # Complete: the same command again computes nothing and reports the same run.
     before = os.path.getsize(out)
-    third = cli(*RUN, "--out", out)
+    third = in_process(capfd, *RUN, "--out", out)
     assert third.returncode == 0 and json.loads(third.stdout)["A"] == report["A"]
     assert os.path.getsize(out) == before
 
 
-def test_an_archive_of_another_run_is_refused(tmp_path, capsys):
-    """The refusals run in this process (``main``), the run and its ``--force`` in fresh ones."""
+def test_an_archive_of_another_run_is_refused(tmp_path, capfd):
+    """In this process (``main``): the run, the refusals and ``--force``."""
     from warpratchet.cli import main
 
     out = tmp_path / "run.h5"
     small = ["run", *MAP_FLAGS, "--points", "100", "--steps", "300", "--quiet", "--out", str(out)]
-    assert cli(*small).returncode == 0
+    assert in_process(capfd, *small).returncode == 0
     before = out.read_bytes()
     for flags, message in [
         (["--seed", "4"], "holds a different run (seed is 0 in the file, 4 requested)"),
         (["--snapshot-every", "100"], "(snapshot_every is 0 in the file, 100 requested)"),
         (["--threshold", "0.2"], "(threshold is None in the file, 0.2 requested)"),
     ]:
-        code, stderr = main([*small, *flags]), capsys.readouterr().err
+        code, stderr = main([*small, *flags]), capfd.readouterr().err
         assert code == 2 and message in stderr and "--force" in stderr, stderr
         assert len(stderr.strip().splitlines()) == 1
     shorter = ["run", *MAP_FLAGS, "--points", "100", "--steps", "200", "--quiet", "--out", str(out)]
-    code, stderr = main(shorter), capsys.readouterr().err
+    code, stderr = main(shorter), capfd.readouterr().err
     assert code == 2 and "already at step 300, beyond --steps 200" in stderr
     assert out.read_bytes() == before
-    assert cli(*small, "--seed", "4", "--force").returncode == 0  # --force replaces it
+    assert in_process(capfd, *small, "--seed", "4", "--force").returncode == 0  # --force replaces it
 
 
 def test_readers_of_a_live_archive_never_get_a_false_error(tmp_path):

@@ -1,6 +1,7 @@
 """Helpers shared by the tests of every room (not a test module), one module per job:
 
-* :mod:`.launching`: the command line and the benchmarks in fresh processes, and their refusals;
+* :mod:`.launching`: the command line (in a fresh process or in this one), the benchmarks, and
+  their refusals;
 * :mod:`.archives`: what an archive holds, its rows while written, the documented layout;
 * :mod:`.damage`: copies with one flipped bit, and what the readers make of each;
 * :mod:`.runs`: states, sweep rows and histories compared bit for bit.
@@ -27,6 +28,7 @@ from .launching import (
     benchmark,
     cli,
     error_line,
+    in_process,
     launch,
     quick_benchmark,
     refused,
@@ -53,6 +55,7 @@ __all__ = [
     "exact_rows",
     "flip_bit",
     "flip_sample",
+    "in_process",
     "launch",
     "no_temporaries",
     "quick_benchmark",

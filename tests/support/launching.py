@@ -1,9 +1,15 @@
-"""Starting the command line and the benchmarks, and reading their refusals."""
+"""The command line in a fresh process or in this one, the benchmarks, and their refusals."""
 
 from __future__ import annotations
 
+import contextlib
+import os
+import runpy
 import subprocess
 import sys
+import tempfile
+import traceback
+import warnings
 from pathlib import Path
 
 #: The CLI flags of the map most tests use, MapParams(3.0, 0.1, 0.01) (domain LR, Eq. Aa).
@@ -38,19 +44,61 @@ def launch(*args: str, module: str = "warpratchet.cli", text: bool = True, **opt
     )
 
 
-def benchmark(name: str, *args: str, timeout: float = 900) -> subprocess.CompletedProcess:
-    """``benchmarks/NAME ARGS`` in a fresh process, run to its end, output captured as text."""
+@contextlib.contextmanager
+def _warnings_on_stderr(stderr: list[str]):
+    """Warnings nobody catches inside the block go, formatted, to ``stderr`` (appended after the
+    block), filtered as a fresh interpreter does (``DeprecationWarning`` and its kin hidden),
+    instead of to pytest's summary."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        for category in (DeprecationWarning, PendingDeprecationWarning, ImportWarning, ResourceWarning):
+            warnings.simplefilter("ignore", category)
+        yield
+    stderr.extend(warnings.formatwarning(w.message, w.category, w.filename, w.lineno) for w in caught)
+
+
+def benchmark(name: str, *args: str) -> subprocess.CompletedProcess:
+    """``python benchmarks/NAME ARGS`` in this process: run as that command runs it (``__main__``,
+    ``sys.argv``, its folder first on ``sys.path``), with file descriptors 1 and 2 (Python's and any
+    library's output) in temporary files; an uncaught exception prints its traceback and gives
+    status 1. The :class:`subprocess.CompletedProcess` of the command, without a fresh interpreter
+    that imports Warp, NumPy and Dask again for each benchmark."""
     script = Path(__file__).resolve().parents[2] / "benchmarks" / name
-    return subprocess.run(
-        [sys.executable, str(script), *args], capture_output=True, text=True, timeout=timeout
-    )
+    argv, path = sys.argv, list(sys.path)
+    extra: list[str] = []
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        sys.stdout.flush(), sys.stderr.flush()
+        saved = os.dup(1), os.dup(2)
+        os.dup2(out.fileno(), 1), os.dup2(err.fileno(), 2)
+        sys.argv, sys.path[:0] = [str(script), *args], [str(script.parent)]
+        try:
+            with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), _warnings_on_stderr(extra):
+                try:
+                    runpy.run_path(str(script), run_name="__main__")
+                    code = 0
+                except SystemExit as exc:
+                    if isinstance(exc.code, str):
+                        print(exc.code, file=sys.stderr)
+                    code = exc.code if isinstance(exc.code, int) else int(exc.code is not None)
+                except Exception:
+                    traceback.print_exc()
+                    code = 1
+        finally:
+            out.flush(), err.flush()
+            os.dup2(saved[0], 1), os.dup2(saved[1], 2)
+            os.close(saved[0]), os.close(saved[1])
+            sys.argv, sys.path[:] = argv, path
+        out.seek(0), err.seek(0)
+        return subprocess.CompletedProcess(
+            ["python", str(script), *args], code, out.read(), err.read() + "".join(extra)
+        )
 
 
-def quick_benchmark(name: str, timeout: float = 900) -> dict:
-    """``benchmarks/NAME --quick --json`` in a fresh process: it must exit 0; its JSON report."""
+def quick_benchmark(name: str) -> dict:
+    """``benchmarks/NAME --quick --json`` (:func:`benchmark`): it must exit 0; its JSON report."""
     import json
 
-    proc = benchmark(name, "--quick", "--json", timeout=timeout)
+    proc = benchmark(name, "--quick", "--json")
     assert proc.returncode == 0, proc.stderr
     return json.loads(proc.stdout)
 
@@ -78,6 +126,27 @@ def error_line(stderr: str) -> str:
         assert usage.startswith(f"usage: {prog} ") and "error:" not in usage, stderr
         assert len(usage) <= USAGE_WIDTH, stderr
     return lines[-1]
+
+
+def in_process(capture, *args: str, main=None) -> subprocess.CompletedProcess:
+    """``warpratchet ARGS`` through :func:`warpratchet.cli.main` in this process (what the installed
+    script calls; another command line's ``main(argv)`` with ``main``, e.g. ``viz``'s): the
+    :class:`subprocess.CompletedProcess` that :func:`cli` would give, for a test that needs only a
+    command's exit status and output, not a fresh interpreter, a signal or a kill.
+
+    ``capture`` is pytest's ``capfd`` (file descriptors 1 and 2, so also what HDF5 or Warp write
+    there) or ``capsys``. A warning nobody catches ends on stderr, formatted and filtered as a fresh
+    interpreter does (``DeprecationWarning`` and its kin hidden), instead of in pytest's summary."""
+    if main is None:
+        from warpratchet.cli import main
+
+    capture.readouterr()  # what came before is not this command's
+    extra: list[str] = []
+    with _warnings_on_stderr(extra):
+        code = main(list(args))
+    out, err = capture.readouterr()
+    err += "".join(extra)
+    return subprocess.CompletedProcess([main.__module__, *args], code, out, err)
 
 
 def refused(capsys, argv: list[str]) -> str:

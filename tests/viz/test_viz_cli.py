@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 import pytest
-from support import cli, launch
+from support import cli, in_process, launch
 
 from warpratchet.sweep import read_sweep
 
@@ -22,20 +22,27 @@ def _viz(*args: str, cwd: Path = ROOT, package: str = "viz") -> subprocess.Compl
     return cli(*args, module=package, cwd=cwd)
 
 
-def test_help_exits_0_and_names_every_command():
-    done = _viz("--help")
+def _viz_here(capfd, *args: str) -> subprocess.CompletedProcess:
+    """``python -m viz ARGS`` through its ``main`` in this process."""
+    from viz.__main__ import main
+
+    return in_process(capfd, *args, main=main)
+
+
+def test_help_exits_0_and_names_every_command(capfd):
+    done = _viz_here(capfd, "--help")
     assert done.returncode == 0, done.stderr
     for command in ("figures", "scenes", "record", "report", "history"):
         assert command in done.stdout
-    figures = _viz("figures", "--help")
+    figures = _viz_here(capfd, "figures", "--help")
     assert figures.returncode == 0
     # a time depends on the machine: the help names none (README gives it with its machine)
     assert re.findall(r"\d+\s*(?:s|min|minutes?)\b|\bunder (?:a|one|1) min", figures.stdout) == []
 
 
 @pytest.mark.parametrize("args", [(), ("bogus",)])
-def test_missing_or_unknown_command_is_a_usage_error(args):
-    done = _viz(*args)
+def test_missing_or_unknown_command_is_a_usage_error(args, capfd):
+    done = _viz_here(capfd, *args)
     assert done.returncode == 2
     assert done.stderr.startswith("usage: python -m viz") and "Traceback" not in done.stderr
     assert done.stderr.strip().splitlines()[-1].startswith("python -m viz: error: ")
@@ -111,21 +118,21 @@ def test_viz_imports_itself_relatively():
             assert not [n for n in names if n == "viz" or n.startswith("viz.")], f"{path}: {names}"
 
 
-def test_history_plots_an_archives_history(tmp_path, capsys):
+def test_history_plots_an_archives_history(tmp_path, capfd):
     """``python -m viz history run.h5 -o history.png``; an archive without a history is one line, status 2.
 
-    The plots in fresh processes; the refusals through ``main`` in this one."""
+    Through ``main`` in this process."""
     from viz.__main__ import main
     from warpratchet import Ensemble, MapParams
 
     def refused(*args: str) -> str:
-        code, err = main(list(args)), capsys.readouterr().err
+        code, err = main(list(args)), capfd.readouterr().err
         assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
         return err
 
     path = tmp_path / "run.h5"
     Ensemble.sample(MapParams(3.0, 0.1, 0.01), 500, "strip", 1).run(4000, archive=path)
-    done = _viz("history", str(path), "-o", str(tmp_path / "history.png"))
+    done = _viz_here(capfd, "history", str(path), "-o", str(tmp_path / "history.png"))
     assert done.returncode == 0, done.stderr
     assert (tmp_path / "history.png").read_bytes().startswith(b"\x89PNG")
     old = refused("history", str(ROOT / "tests" / "data" / "archive_v2.h5"), "-o", str(tmp_path / "old.png"))
@@ -136,6 +143,6 @@ def test_history_plots_an_archives_history(tmp_path, capsys):
     again = refused("history", str(path), "-o", str(tmp_path / "history.png"))
     assert "already exists" in again and "--overwrite" in again
     assert (tmp_path / "history.png").read_bytes() == b"mine"
-    replaced = _viz("history", str(path), "-o", str(tmp_path / "history.png"), "--overwrite")
+    replaced = _viz_here(capfd, "history", str(path), "-o", str(tmp_path / "history.png"), "--overwrite")
     assert replaced.returncode == 0, replaced.stderr
     assert (tmp_path / "history.png").read_bytes().startswith(b"\x89PNG")
