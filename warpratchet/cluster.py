@@ -381,13 +381,6 @@ def _point_state(gain: np.ndarray, stretch: np.ndarray) -> dict[str, np.ndarray]
     return {"winding": gain, "q": zero, "p0": zero, "dx": one, "dp": zero, "log_stretch": stretch}
 
 
-def _chunks(points: int) -> list[tuple[int, int]]:
-    """``(lo, hi)`` of the :data:`~warpratchet.observables.SUMMARY_CHUNK` blocks of points that the
-    single machine's summaries and variances reduce one at a time."""
-    size = _obs.SUMMARY_CHUNK
-    return [(lo, min(points, lo + size)) for lo in range(0, max(points, 1), size)]
-
-
 def _chunk_values(gain: np.ndarray, stretch: np.ndarray, step: int):
     """FTLE, ``A_n`` and ``p_n - p_0`` of a chunk's points from their records, by the single
     machine's own functions (:func:`_point_state`)."""
@@ -587,14 +580,18 @@ class ShardedRun:
         whole chunks; per chunk that shards share, a task over its points' records."""
         tasks = []
         bounds = [(r.lo, r.hi) for r in self._records]
-        for c, (lo, hi) in enumerate(_chunks(self.points)):
+        for c, (lo, hi) in enumerate(_obs.summary_chunks(self.points)):
             inside = [k for k, (a, b) in enumerate(bounds) if a < hi and lo < b]
             if len(inside) > 1:
                 pieces = [cluster.submit(_raw, cluster.sources[k], rows, max(lo, bounds[k][0]),
                                          min(hi, bounds[k][1])) for k in inside]  # fmt: skip
                 tasks.append(cluster.submit(_boundary_pass, rows, c, means, *pieces))
         for k, (a, b) in enumerate(bounds):
-            whole = [(c, lo, hi) for c, (lo, hi) in enumerate(_chunks(self.points)) if a <= lo and hi <= b]
+            whole = [
+                (c, lo, hi)
+                for c, (lo, hi) in enumerate(_obs.summary_chunks(self.points))
+                if a <= lo and hi <= b
+            ]
             if whole:
                 tasks.append(cluster.submit(_shard_pass, cluster.sources[k], rows, whole, means))
         parts: dict = {}
@@ -605,7 +602,7 @@ class ShardedRun:
     def _history(self, cluster: _Cluster) -> History:
         spec = self.spec
         n = self.points
-        chunks = range(len(_chunks(n)))
+        chunks = range(len(_obs.summary_chunks(n)))
         rows_in = [
             (k, step, self._limit(step, spec.threshold, spec.threshold_rule))
             for k, step in enumerate(self._steps)
@@ -738,7 +735,7 @@ def check_merge(points: int, transport: bool = False, rows: int = 64) -> None:
     from .limits import check_memory
     from .transport._fits import GROUPS
 
-    blocks = len(_chunks(points))
+    blocks = -(-max(points, 1) // _obs.SUMMARY_CHUNK)  # len(summary_chunks(points)), counted
     needed = rows * (blocks * MERGE_BYTES_PER_BLOCK + (3 * GROUPS * 8 if transport else 0))
     check_memory(f"points = {points} (the merge of a sharded run)", needed,
                  f"{MERGE_BYTES_PER_BLOCK} B per row for each of {blocks} blocks of points")  # fmt: skip

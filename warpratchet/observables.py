@@ -42,6 +42,7 @@ __all__ = [
     "Summary",
     "summarize",
     "SUMMARY_CHUNK",
+    "summary_chunks",
 ]
 
 #: Fewest chaotic points for which A is reported as an estimate. The standard error is itself
@@ -265,6 +266,12 @@ def mean_stderr(values: np.ndarray) -> tuple[float, float]:
 SUMMARY_CHUNK = 1 << 20
 
 
+def summary_chunks(points: int) -> list[tuple[int, int]]:
+    """The points ``(lo, hi)`` of each chunk of :data:`SUMMARY_CHUNK` that :func:`summarize` reduces
+    at a time, in order (one chunk, empty, for no points)."""
+    return [(lo, min(points, lo + SUMMARY_CHUNK)) for lo in range(0, max(points, 1), SUMMARY_CHUNK)]
+
+
 def _per_point(
     state: dict[str, np.ndarray],
     step: int,
@@ -337,7 +344,7 @@ def summarize(
     for name, given in (("ftle", ftle), ("gain", gain)):
         if given is not None and np.shape(given) != (n,):
             raise ValueError(f"{name} has shape {np.shape(given)}, expected ({n},)")
-    bounds = [(lo, min(n, lo + SUMMARY_CHUNK)) for lo in range(0, max(n, 1), SUMMARY_CHUNK)]
+    bounds = summary_chunks(n)
     # One chunk: keep its per-point values for the second pass instead of computing them again.
     kept = {}
     known = ftle  # the caller's FTLE (the loops below name each chunk's ftle)
@@ -483,7 +490,7 @@ def summarize_with_variance(
         return None
     buffers = {} if buffers is None else buffers
     low, high = threshold / AMBIGUITY_FACTOR, threshold * AMBIGUITY_FACTOR
-    bounds = [(lo, min(n, lo + SUMMARY_CHUNK)) for lo in range(0, max(n, 1), SUMMARY_CHUNK)]
+    bounds = summary_chunks(n)
 
     def run(jobs: list) -> list:
         return [total for totals in _batched(pool, jobs, batches) for total in totals]
