@@ -408,7 +408,8 @@ class RowPass:
     ftle : ndarray, shape (points,), optional
         Every point's FTLE if known already; else computed here (needs :func:`row_pass_available`).
     buffers : dict, optional
-        Where the pass's output arrays are kept for the next pass of this size (the caller's).
+        Where the pass's output arrays are kept for the next pass of this size or smaller (the
+        caller's; a summary's chunks share them).
 
     Calling it with a group of consecutive leaves ``[(lo, hi), ...]`` of the summary's tree, the
     row's ``step`` (n >= 1), ``threshold`` and the ambiguity band ``(low, high)`` fills the group's
