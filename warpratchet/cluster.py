@@ -580,18 +580,15 @@ class ShardedRun:
         whole chunks; per chunk that shards share, a task over its points' records."""
         tasks = []
         bounds = [(r.lo, r.hi) for r in self._records]
-        for c, (lo, hi) in enumerate(_obs.summary_chunks(self.points)):
+        chunks = _obs.summary_chunks(self.points)
+        for c, (lo, hi) in enumerate(chunks):
             inside = [k for k, (a, b) in enumerate(bounds) if a < hi and lo < b]
             if len(inside) > 1:
                 pieces = [cluster.submit(_raw, cluster.sources[k], rows, max(lo, bounds[k][0]),
                                          min(hi, bounds[k][1])) for k in inside]  # fmt: skip
                 tasks.append(cluster.submit(_boundary_pass, rows, c, means, *pieces))
         for k, (a, b) in enumerate(bounds):
-            whole = [
-                (c, lo, hi)
-                for c, (lo, hi) in enumerate(_obs.summary_chunks(self.points))
-                if a <= lo and hi <= b
-            ]
+            whole = [(c, lo, hi) for c, (lo, hi) in enumerate(chunks) if a <= lo and hi <= b]
             if whole:
                 tasks.append(cluster.submit(_shard_pass, cluster.sources[k], rows, whole, means))
         parts: dict = {}

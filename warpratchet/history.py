@@ -63,7 +63,14 @@ import numpy as np
 
 from .ensemble import STATE_FIELDS, Ensemble
 from .errors import check_choice, check_count, check_optional, check_real, renamed_keyword
-from .observables import SUMMARY_CHUNK, THRESHOLD_RULES, Summary, chaotic_mask, lyapunov, momentum_gain
+from .observables import (
+    THRESHOLD_RULES,
+    Summary,
+    chaotic_mask,
+    lyapunov,
+    momentum_gain,
+    summary_chunks,
+)
 from .runloop import Observer
 from .sampling import salted_subsample
 from .verdict import Assessment, assess
@@ -179,7 +186,7 @@ def _variance(state: Mapping[str, np.ndarray]) -> float:
     if n < 2:
         return math.nan
     fields = ("winding", "q", "p0")
-    parts = [{k: state[k][lo : lo + SUMMARY_CHUNK] for k in fields} for lo in range(0, n, SUMMARY_CHUNK)]
+    parts = [{k: state[k][lo:hi] for k in fields} for lo, hi in summary_chunks(n)]
     kept = momentum_gain(parts[0]) if len(parts) == 1 else None
     mean = math.fsum(float(np.add.reduce(momentum_gain(p) if kept is None else kept)) for p in parts) / n
     squares = 0.0

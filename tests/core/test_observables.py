@@ -217,10 +217,7 @@ def test_past_one_chunk_the_summary_with_variance_adds_the_chunks_as_summarize_d
     bits (the chunk shrunk here, so that 40,000 points make 10, 3 or 2 chunks, the last a part)."""
     from concurrent.futures import ThreadPoolExecutor
 
-    import warpratchet.history
-
-    for module in (observables, warpratchet.history):
-        monkeypatch.setattr(module, "SUMMARY_CHUNK", chunk)
+    monkeypatch.setattr(observables, "SUMMARY_CHUNK", chunk)  # the history variance's chunks too
     monkeypatch.setattr(observables, "TREE_LEAF", 128)  # many leaves in a chunk, on the threads
     state = _state(40_000, 300, seed=11)
     ftle = lyapunov(state, 300)

@@ -421,8 +421,7 @@ def test_a_summary_on_every_device_is_summarize_of_its_state_on_the_hosts_thread
 
     monkeypatch.setattr(warpratchet.observables, "TREE_LEAF", 1024)  # many leaves: on the threads
     monkeypatch.setattr(warpratchet.ensemble, "TREE_LEAF", 1024)
-    for module in (warpratchet.observables, warpratchet.history):
-        monkeypatch.setattr(module, "SUMMARY_CHUNK", 20_000)  # 3 chunks
+    monkeypatch.setattr(warpratchet.observables, "SUMMARY_CHUNK", 20_000)  # 3 chunks, the history's too
     ens = Ensemble.sample(MapParams(3.0, 0.1, 0.01), 50_000, "torus", seed=2, threads=2, device=device)
     ens.run(400)
     calls = []

@@ -380,11 +380,9 @@ def test_run_with_scheduler_for_a_human(capsys, cluster):
 def small_blocks(monkeypatch):
     """Blocks of 300 points for the summaries and variances (one machine's and the merge's alike):
     an ensemble of 2000 points has 7 of them, and shards cut inside some."""
-    import warpratchet.history
     import warpratchet.observables
 
-    monkeypatch.setattr(warpratchet.observables, "SUMMARY_CHUNK", 300)
-    monkeypatch.setattr(warpratchet.history, "SUMMARY_CHUNK", 300)
+    monkeypatch.setattr(warpratchet.observables, "SUMMARY_CHUNK", 300)  # the history's chunks too
 
 
 @pytest.mark.parametrize("transport", [False, True])

@@ -326,15 +326,13 @@ def test_a_runs_report_and_history_equal_those_of_summarize_and_the_reference_va
         "--points", "3000", "--steps", "2500", "--seed", "4", "--threads", threads, "--json", "--quiet"
     )
     import warpratchet.ensemble
-    import warpratchet.history
     import warpratchet.kernels
     import warpratchet.observables
 
     for module in (warpratchet.ensemble, warpratchet.observables):  # many leaves, on the threads
         monkeypatch.setattr(module, "TREE_LEAF", 128)
-    if chunk is not None:
-        for module in (warpratchet.observables, warpratchet.history):
-            monkeypatch.setattr(module, "SUMMARY_CHUNK", chunk)
+    if chunk is not None:  # the summaries' and the history variance's chunks
+        monkeypatch.setattr(warpratchet.observables, "SUMMARY_CHUNK", chunk)
     passes = []  # the rows' per-point pass runs in the kernel (its FTLE computed there, where NumPy's)
 
     class RowPass(warpratchet.kernels.RowPass):
