@@ -46,10 +46,10 @@ the drift of A between n/2 and n in units of its standard error and the robust e
 The steps are global step numbers fixed by the target alone, so a run split into chunks,
 interrupted and continued to the same target records the same rows and blocks, bit for bit, as
 an uninterrupted one (:meth:`History.restore` continues a history kept in an archive). Each row
-costs about one summary (``summarize`` and one pass over ``p_n - p_0``, memory-bound NumPy
-passes on the run's threads): the time of some tens of kernel steps, little against a long run
-and much against a short run of many points (measured: ``benchmarks/README.md``,
-"end_to_end.py").
+costs about one summary (:meth:`Ensemble.summary <warpratchet.ensemble.Ensemble.summary>`: the
+summary and the variance of ``p_n - p_0`` in the same memory-bound passes over the state, on the
+run's threads): the time of some tens of kernel steps, little against a long run and much
+against a short run of many points (measured: ``benchmarks/README.md``, "end_to_end.py").
 """
 
 from __future__ import annotations
