@@ -464,10 +464,10 @@ class Ensemble:
         views = self.views()
         args = (views, self.step, threshold, ftle)
         # the per-point pass and the sums in kernels, NumPy's bits (the FTLE in the pass where its
-        # functions are NumPy's here: kernels.RowPass)
+        # functions are NumPy's here, else NumPy's own just before it: kernels.RowPass)
         options: dict[str, Any] = {"buffers": self._row_buffers}
         few = self.points < 4 * TREE_LEAF  # a few leaves: not worth the threads, nor the launches
-        if not few and (ftle is not None or kernels.row_pass_available()):
+        if not few:
             options["leaf_pass"] = functools.partial(kernels.RowPass, buffers=self._row_buffers)
             options["leaf_sums"] = kernels.leaf_sums
         # kernels take equal shares in equal times: one piece per thread (fewer gathered parts

@@ -102,6 +102,19 @@ def lyapunov(state: dict[str, np.ndarray], step: int) -> np.ndarray:
     return (state["log_stretch"] + np.log(np.hypot(state["dx"], state["dp"]))) / step
 
 
+def _lyapunov_into(
+    state: Mapping[str, np.ndarray], step: int, lo: int, hi: int, out: np.ndarray
+) -> np.ndarray:
+    """:func:`lyapunov` of points ``lo:hi`` of ``state`` into ``out`` (shape ``(hi - lo,)``): its
+    operations in its order, so its bits, without temporaries. Non-finite values are left to the
+    caller (no warning)."""
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+        np.hypot(state["dx"][lo:hi], state["dp"][lo:hi], out=out)
+        np.log(out, out=out)
+        np.add(state["log_stretch"][lo:hi], out, out=out)
+        return np.divide(out, step, out=out)
+
+
 #: Rules for the FTLE threshold when none is given: ``threshold = factor (1 + ln n)/n`` with the
 #: factor of the rule (:func:`lyapunov_threshold`). The names are
 #: :data:`warpratchet.spec.THRESHOLD_RULES` (RunSpec's ``threshold_rule``).
@@ -527,11 +540,8 @@ def summarize_with_variance(
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # non-finite: None
             for lo, hi in group:
                 f, a, g = f_buf[: hi - lo], a_buf[: hi - lo], gain[lo:hi]
-                if ftle is None:  # lyapunov's operations, in its order
-                    np.hypot(x["dx"][lo:hi], x["dp"][lo:hi], out=f)
-                    np.log(f, out=f)
-                    np.add(x["log_stretch"][lo:hi], f, out=f)
-                    np.divide(f, step, out=f)
+                if ftle is None:
+                    _lyapunov_into(x, step, lo, hi, f)
                 else:
                     f = ftle[lo:hi]
                 p0 = x["p0"][lo:hi]  # momentum_gain's operations, in its order

@@ -131,6 +131,18 @@ def _reference(state: dict, step: int, threshold, rule: str = "strict", ftle=Non
     return summarize(state, step, threshold, rule, ftle), _variance(state)
 
 
+@pytest.fixture(params=["as found", "off"])
+def libm_gate(request, monkeypatch):
+    """The row pass's FTLE: in the kernel where this machine's libm gate allows it ("as found"), or
+    NumPy's own, made just before the kernel's pass ("off": a machine whose NumPy calls another
+    ``log``, e.g. its own AVX-512 one)."""
+    if request.param == "off":
+        from warpratchet.kernels import _rows
+
+        monkeypatch.setattr(_rows, "_available", False)  # restored after the test
+    return request.param
+
+
 @pytest.mark.parametrize(
     ("points", "steps", "threshold", "rule"),
     [
@@ -146,7 +158,7 @@ def _reference(state: dict, step: int, threshold, rule: str = "strict", ftle=Non
 )
 @pytest.mark.parametrize(("threads", "leaf"), [(1, None), (3, 128), (2, 1000)])
 def test_the_summary_with_variance_on_threads_is_summarize_and_the_history_variance_bit_for_bit(
-    monkeypatch, points, steps, threshold, rule, threads, leaf
+    monkeypatch, points, steps, threshold, rule, threads, leaf, libm_gate
 ):
     from concurrent.futures import ThreadPoolExecutor
 
@@ -169,10 +181,10 @@ def test_the_summary_with_variance_on_threads_is_summarize_and_the_history_varia
         given[name] == value or _same_bits(given[name], value) for name, value in want.as_dict().items()
     )
     # The per-point pass in one kernel, as an ensemble on the CPU runs it: the FTLE given, and
-    # computed in the kernel where its functions are NumPy's here; twice, the second time in the
-    # arrays the first one left.
+    # not given (computed in the kernel where its functions are NumPy's here, else NumPy's just
+    # before it); twice, the second time in the arrays the first one left.
     buffers = {}
-    for known in [ftle, None] if kernels.row_pass_available() else [ftle]:
+    for known in [ftle, None]:
         for _ in range(2):
             with ThreadPoolExecutor(threads) as pool:
                 got, var = observables.summarize_with_variance(
@@ -191,12 +203,12 @@ def test_the_summary_with_variance_on_threads_is_summarize_and_the_history_varia
             assert _same_bits(var, variance)
 
 
-def test_the_summary_with_variance_leaves_what_it_cannot_do_to_summarize():
+def test_the_summary_with_variance_leaves_what_it_cannot_do_to_summarize(libm_gate):
     state = _state(300, 50, seed=1)
     state["dx"][7] = np.inf
     assert observables.summarize_with_variance(state, 50, lyapunov_threshold(50)) is None
     ftle = lyapunov(state, 50)
-    for known in [ftle, None] if kernels.row_pass_available() else [ftle]:
+    for known in [ftle, None]:
         assert (
             observables.summarize_with_variance(
                 state, 50, lyapunov_threshold(50), known, leaf_pass=kernels.RowPass
@@ -209,7 +221,7 @@ def test_the_summary_with_variance_leaves_what_it_cannot_do_to_summarize():
 
 @pytest.mark.parametrize(("chunk", "threads"), [(1000, 1), (1000, 2), (4096, 3), (39_999, 2)])
 def test_past_one_chunk_the_summary_with_variance_adds_the_chunks_as_summarize_does(
-    monkeypatch, chunk, threads
+    monkeypatch, chunk, threads, libm_gate
 ):
     """More points than :data:`SUMMARY_CHUNK`: ``summarize`` adds up its chunks' sums (not NumPy's
     pairwise sum of the whole array) and the history's variance adds the chunks' sums as Python
@@ -224,8 +236,7 @@ def test_past_one_chunk_the_summary_with_variance_adds_the_chunks_as_summarize_d
     for threshold in (0.05, lyapunov_threshold(300), 0.0):
         want, variance = _reference(state, 300, threshold)
         buffers = {}
-        kernel_passes = [ftle, None] if kernels.row_pass_available() else [ftle]
-        ways = [(None, None, None)] + [(known, kernels.RowPass, kernels.leaf_sums) for known in kernel_passes]
+        ways = [(None, None, None)] + [(known, kernels.RowPass, kernels.leaf_sums) for known in (ftle, None)]
         for known, leaf_pass, leaf_sums in ways:
             with ThreadPoolExecutor(threads) as pool:
                 got, var = observables.summarize_with_variance(

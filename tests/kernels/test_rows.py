@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from warpratchet import kernels
-from warpratchet.observables import momentum_gain
+from warpratchet.observables import lyapunov, momentum_gain
 
 
 def _bits(values) -> bytes:
@@ -50,20 +50,26 @@ def test_leaves_must_be_consecutive():
         kernels.leaf_sums(np.ones(10), [(0, 4), (5, 10)])
 
 
-@pytest.mark.skipif(not kernels.row_pass_available(), reason="the row pass computes no FTLE here")
-@pytest.mark.parametrize("size", [1, 5, 256, 257, 1000])
-def test_a_non_finite_tangent_anywhere_leaves_the_group_to_numpy(size):
-    """A point whose tangent is not finite is not covered wherever it sits in a block (the group is
-    NumPy's: None); a covered point whose FTLE is infinite is a non-finite summary instead."""
+def _random_state(size: int, stretch: float) -> dict:
+    """A state of ``size`` points drawn from a generator seeded by ``size``, its ``log_stretch`` in
+    ``[0, stretch)``."""
     rng = np.random.default_rng(size)
-    state = {
+    return {
         "winding": rng.integers(-5, 5, size),
         "q": rng.uniform(0.0, 1.0, size),
         "p0": rng.uniform(0.0, 1.0, size),
         "dx": rng.uniform(-2.0, 2.0, size),
         "dp": rng.uniform(-2.0, 2.0, size),
-        "log_stretch": rng.uniform(0.0, 10.0, size),
+        "log_stretch": rng.uniform(0.0, stretch, size),
     }
+
+
+@pytest.mark.skipif(not kernels.row_pass_available(), reason="the row pass computes no FTLE here")
+@pytest.mark.parametrize("size", [1, 5, 256, 257, 1000])
+def test_a_non_finite_tangent_anywhere_leaves_the_group_to_numpy(size):
+    """A point whose tangent is not finite is not covered wherever it sits in a block (the group is
+    NumPy's: None); a covered point whose FTLE is infinite is a non-finite summary instead."""
+    state = _random_state(size, stretch=10.0)
     gain = np.empty(size)
     assert kernels.RowPass(state)([(0, size)], gain, 10, 0.0, -1.0, 1.0) is not None
     for where in sorted({0, size // 2, size - 1}):
@@ -76,6 +82,36 @@ def test_a_non_finite_tangent_anywhere_leaves_the_group_to_numpy(size):
         infinite["log_stretch"][where] = np.inf
         result = kernels.RowPass(infinite)([(0, size)], gain, 10, 0.0, -1.0, 1.0)
         assert result is not None and result[4] is False  # finite: no
+
+
+@pytest.mark.parametrize("size", [5, 257, 1000])
+def test_where_the_kernels_log_is_not_numpys_the_pass_takes_numpys_ftle(monkeypatch, size):
+    """With the libm gate off (a NumPy whose ``log`` the transcription does not match), a pass given
+    no FTLE makes NumPy's, group by group, and gives the bits of a pass given ``lyapunov``'s; a
+    non-finite tangent gives a non-finite FTLE there, a summary that is not finite."""
+    from warpratchet.kernels import _rows
+
+    monkeypatch.setattr(_rows, "_available", False)
+    state = _random_state(size, stretch=0.5)
+    step, threshold = 10, 0.03
+    groups = [[(0, size // 2)], [(size // 2, size)]]  # the second group first: each its own FTLE
+    row = (step, threshold, threshold / 3, threshold * 3)
+    own = kernels.RowPass(state)
+    assert own.own_ftle
+    given = kernels.RowPass(state, lyapunov(state, step), buffers={})
+    gains = np.empty(size), np.empty(size)
+    for group in reversed(groups):
+        ours, theirs = own(group, gains[0], *row), given(group, gains[1], *row)
+        assert _bits(np.concatenate(ours[0] + ours[1] + ours[2])) == _bits(
+            np.concatenate(theirs[0] + theirs[1] + theirs[2])
+        )
+        assert ours[3:5] == theirs[3:5] and ours[4] is True
+        assert _bits(list(ours[5].values())) == _bits(list(theirs[5].values()))
+    assert _bits(gains[0]) == _bits(gains[1]) == _bits(momentum_gain(state))
+    for bad in (np.inf, np.nan):
+        broken = dict(state, dx=state["dx"].copy())
+        broken["dx"][size // 2] = bad
+        assert kernels.RowPass(broken)([(0, size)], gains[0], *row)[4] is False
 
 
 def test_the_gates_verdict_is_kept_per_machine_and_read_back(monkeypatch, tmp_path):

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
+from ..observables import _lyapunov_into
 from . import _libm
 from ._libm import GLIBC_FTLE_CPP, matches_numpy
 from ._runtime import CPU_MODULE_OPTIONS, arrays_struct, init_warp
@@ -406,7 +407,9 @@ class RowPass:
     state : dict of ndarray, shape (points,) each
         At least :data:`ROW_FIELDS`, contiguous host arrays (an ensemble's zero-copy views).
     ftle : ndarray, shape (points,), optional
-        Every point's FTLE if known already; else computed here (needs :func:`row_pass_available`).
+        Every point's FTLE if known already; else computed here: in the kernel where its functions
+        are NumPy's (:func:`row_pass_available`), else with NumPy's own functions, a group at a
+        time just before the kernel's pass over it.
     buffers : dict, optional
         Where the pass's output arrays are kept for the next pass of this size or smaller (the
         caller's; a summary's chunks share them).
@@ -429,15 +432,24 @@ class RowPass:
         for name in ROW_FIELDS:
             dtype = wp.int64 if name == "winding" else wp.float64
             setattr(self.inputs, name, _wrap(np.ascontiguousarray(state[name]), dtype))
-        empty = np.empty(0) if ftle is None else np.ascontiguousarray(ftle, dtype=np.float64)
-        self.inputs.ftle = _wrap(empty, wp.float64)
         buffers = {} if buffers is None else buffers
+        names = ["chaotic_ftle", "chaotic_acc", "ambiguous_acc"]
+        # Where the kernel's hypot and log would not be NumPy's, the FTLE is NumPy's, computed in
+        # this pass's own buffer group by group (__call__), and the kernel takes it as given.
+        self.state = state
+        self.own_ftle = ftle is None and not row_pass_available()
+        if self.own_ftle:
+            names.append("ftle")
         self.buffers = {}
-        for name in ("chaotic_ftle", "chaotic_acc", "ambiguous_acc"):
+        for name in names:
             kept = buffers.get(f"row pass {name}")
             if kept is None or kept.size < n:  # a summary's chunks differ in size: the largest
                 kept = buffers[f"row pass {name}"] = np.empty(n)
             self.buffers[name] = kept[:n]
+        if self.own_ftle:
+            ftle = self.ftle = self.buffers.pop("ftle")
+        empty = np.empty(0) if ftle is None else np.ascontiguousarray(ftle, dtype=np.float64)
+        self.inputs.ftle = _wrap(empty, wp.float64)
 
     def __call__(
         self,
@@ -449,6 +461,8 @@ class RowPass:
         high: float,
     ) -> tuple | None:
         lo, hi = group[0][0], group[-1][1]
+        if self.own_ftle:
+            _lyapunov_into(self.state, step, lo, hi, self.ftle[lo:hi])
         counts = np.zeros(2, dtype=np.int64)
         least = np.empty(1)
         status = np.zeros(1, dtype=np.int32)
