@@ -52,16 +52,16 @@ from typing import Any
 
 import numpy as np
 
-from . import observables as _obs
-from ._cluster_archive import shard_paths, shards_folder, snapshot_file, snapshot_steps
-from .archive._format import SNAPSHOT_FIELDS
-from .archive._rows import snapshot_indices, snapshot_row
-from .errors import ParameterError, ResourceError, check_count, renamed_attribute
-from .history import BLOCKS, History, block_steps, block_subsample, history_row, history_steps
-from .limits import format_bytes
-from .observables import SUMMARY_BYTES_PER_POINT, Summary, lyapunov, momentum_gain
-from .runloop import Observer
-from .spec import RunSpec
+from .. import observables as _obs
+from .._cluster_archive import shard_paths, shards_folder, snapshot_file, snapshot_steps
+from ..archive._format import SNAPSHOT_FIELDS
+from ..archive._rows import snapshot_indices, snapshot_row
+from ..errors import ParameterError, ResourceError, check_count, renamed_attribute
+from ..history import BLOCKS, History, block_steps, block_subsample, history_row, history_steps
+from ..limits import format_bytes
+from ..observables import SUMMARY_BYTES_PER_POINT, Summary, lyapunov, momentum_gain
+from ..runloop import Observer
+from ..spec import RunSpec
 
 __all__ = [
     "check_merge",
@@ -93,10 +93,10 @@ def _ensemble_size(spec: RunSpec) -> int:
 
 def _kind(transport: bool):
     if transport:
-        from .transport import TransportEnsemble
+        from ..transport import TransportEnsemble
 
         return TransportEnsemble
-    from .ensemble import Ensemble
+    from ..ensemble import Ensemble
 
     return Ensemble
 
@@ -230,7 +230,7 @@ class _Recorder(Observer):
             self._save(step, due)
 
     def _save(self, step: int, arrays: dict[str, np.ndarray]) -> None:
-        from ._files import publish, temporary_beside
+        from .._files import publish, temporary_beside
 
         path = _step_path(self.folder, step)
         with temporary_beside(path) as tmp:
@@ -261,8 +261,8 @@ class _Recorder(Observer):
         HDF5 file ``path``, published atomically (the merged archive's virtual sources)."""
         import h5py
 
-        from ._files import publish, temporary_beside
-        from ._h5 import sync_h5
+        from .._files import publish, temporary_beside
+        from .._h5 import sync_h5
 
         with temporary_beside(path) as tmp:
             with h5py.File(tmp, "w") as f:
@@ -274,7 +274,7 @@ class _Recorder(Observer):
 
 def _sample_shard(spec: RunSpec, lo: int, hi: int, transport: bool):
     """The ensemble of points ``lo <= i < hi`` of ``spec``'s ensemble, at step 0."""
-    from .sampling import sampled_chunks
+    from ..sampling import sampled_chunks
 
     _, chunks = sampled_chunks(spec.params, spec.init, spec.points, spec.seed, lo, hi)
     return _kind(transport)(
@@ -309,7 +309,7 @@ def run_shard(
     subsample of ``snapshot_points`` that are its own, and writes them to
     ``snapshots.h5`` in its records folder when it ends (:func:`snapshot_file`).
     """
-    from .ensemble import Ensemble
+    from ..ensemble import Ensemble
 
     n = _ensemble_size(spec)
     indices = block_subsample(n, spec.seed)
@@ -326,7 +326,7 @@ def run_shard(
     if archive is None:
         ensemble = _sample_shard(spec, lo, hi, transport)
     else:
-        from .archive import ArchiveSink
+        from ..archive import ArchiveSink
 
         os.makedirs(folder, exist_ok=True)
         if os.path.exists(archive):
@@ -476,8 +476,8 @@ def _spread_link(record: ShardRecord, rows: list, carried: tuple | None, points:
     ``(k, step, limit)`` of ``rows`` carried on over ``record``'s points: with ``means`` None the
     chaotic points' counts and gains, else their squared deviations from ``means`` (shape
     ``(rows, G)``), by :func:`~warpratchet.transport._diffusion.spread_moments`' own elementwise code."""
-    from .transport._diffusion import _chaotic_gains
-    from .transport._fits import GROUPS
+    from ..transport._diffusion import _chaotic_gains
+    from ..transport._fits import GROUPS
 
     if carried is None:
         carried = (np.zeros((len(rows), GROUPS)), np.zeros((len(rows), GROUPS), bool),
@@ -660,10 +660,10 @@ class ShardedRun:
         return result
 
     def _merge_transport(self, cluster: _Cluster) -> dict:
-        from .transport import Histograms
-        from .transport._diffusion import spread_steps
-        from .transport._fits import GROUPS, diffusion_fit, pooled_variance
-        from .transport._report import transport_report
+        from ..transport import Histograms
+        from ..transport._diffusion import spread_steps
+        from ..transport._fits import GROUPS, diffusion_fit, pooled_variance
+        from ..transport._report import transport_report
 
         counts = sum(r.counts for r in self._records)
         still_open = sum(r.open_counts for r in self._records)
@@ -704,7 +704,7 @@ class ShardedRun:
 def _worker_memory(client: Any) -> dict[str, int]:
     """Each worker's memory: Dask's ``memory_limit``, or where it has none, what its machine has
     available (asked of the worker; 0 where unknown)."""
-    from .limits import available_memory
+    from ..limits import available_memory
 
     limits = {}
     unlimited = []
@@ -729,8 +729,8 @@ def check_merge(points: int, transport: bool = False, rows: int = 64) -> None:
     partial sums of every :data:`~warpratchet.observables.SUMMARY_CHUNK` block of points at each
     of ``rows`` rows (:data:`MERGE_BYTES_PER_BLOCK`), and with ``transport`` the spread's column
     sums; nothing per point."""
-    from .limits import check_memory
-    from .transport._fits import GROUPS
+    from ..limits import check_memory
+    from ..transport._fits import GROUPS
 
     blocks = -(-max(points, 1) // _obs.SUMMARY_CHUNK)  # len(summary_chunks(points)), counted
     needed = rows * (blocks * MERGE_BYTES_PER_BLOCK + (3 * GROUPS * 8 if transport else 0))
@@ -883,14 +883,14 @@ def run_sharded(
     RuntimeError
         A shard failed for good (after Dask's retries of a lost worker): names the shard and why.
     """
-    from .sweep._run import _connect
+    from ..sweep._run import _connect
 
     if not isinstance(spec, RunSpec):
         raise ParameterError(f"spec = {spec!r} is not a RunSpec")
-    from .limits import check_kernel_range
+    from ..limits import check_kernel_range
 
     check_kernel_range(spec.params)
-    from .archive import schedule
+    from ..archive import schedule
 
     if snapshot_every:  # chunk ends on the snapshots, as on one machine (ParameterError if not)
         schedule(spec.points, spec.chunk_steps, snapshot_every, checkpoint_every)
@@ -941,7 +941,7 @@ def run_sharded(
         ]
         import distributed
 
-        from .progress import ProgressBar
+        from ..progress import ProgressBar
 
         records: dict[int, ShardRecord] = {}
         index = {future.key: k for k, future in enumerate(futures)}
@@ -968,7 +968,7 @@ def run_sharded(
             bar.close()
             client.cancel(futures)
         if out is not None:
-            from ._cluster_archive import write_merged
+            from .._cluster_archive import write_merged
 
             write_merged(out, merged, workdir, bounds, snapshots, replace=force)
             if shared:
