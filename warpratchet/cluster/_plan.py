@@ -2,9 +2,10 @@
 
 :func:`shard_bounds` cuts the ensemble by global point index into consecutive shards, as equal
 as can be. :func:`shard_bytes` is what a shard holds on its worker (its state, its records, the
-block of points it may share with the next shard, its snapshots) and :func:`check_merge` what
-the merge's client holds (a few numbers per row and per block of points, nothing per point);
-both are checked before any work, a shard against the smallest worker (:func:`_check_workers`).
+records of a block of points that shards share, for the merge, and its snapshots) and
+:func:`check_merge` what the merge's client holds (a few numbers per row and per block of
+points, nothing per point); both are checked before any work, a shard against the smallest
+worker (:func:`_check_workers`).
 """
 
 from __future__ import annotations
