@@ -590,7 +590,7 @@ def fails(*args, **kwargs):
         ("warpratchet._cluster_archive.sync_h5", False),  # making it durable
         ("warpratchet.archive._writer.publish", False),  # just before the rename
         ("warpratchet.archive._writer.publish", True),  # just after the rename
-        ("warpratchet.cluster._remove_other_runs", True),  # removing the replaced run's shards
+        ("warpratchet.cluster._run._remove_other_runs", True),  # removing the replaced run's shards
     ],
 )
 def test_force_killed_at_each_step_of_publishing_leaves_a_consistent_archive(
