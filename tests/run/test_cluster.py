@@ -80,6 +80,10 @@ def client(cluster):
 def check_merged(merged: ShardedRun, reference: tuple, transport: bool) -> None:
     summary, history, report = reference
     assert exact(merged.summary(SPEC.threshold, SPEC.threshold_rule, warn=False).as_dict()) == exact(summary)
+    # the keyword is Ensemble.summary's (the former spelling still works, and warns)
+    assert merged.summary(threshold_rule=SPEC.threshold_rule, warn=False) is merged.summary(warn=False)
+    with pytest.warns(DeprecationWarning, match="threshold_rule"):
+        assert merged.summary(rule=SPEC.threshold_rule, warn=False) is merged.summary(warn=False)
     assert same_history(merged.history, history)
     assert exact(merged.history.as_dict()) == exact(history.as_dict())
     assert exact(merged.history.convergence().__dict__) == exact(history.convergence().__dict__)

@@ -17,7 +17,7 @@ from typing import Any
 import numpy as np
 
 from .. import observables as _obs
-from ..errors import renamed_attribute
+from ..errors import renamed_attribute, renamed_keyword
 from ..history import History, block_subsample, history_row
 from ..observables import Summary
 from ..spec import RunSpec
@@ -164,25 +164,27 @@ class ShardedRun:
             rows, block_rows, indices, threshold=spec.threshold, threshold_rule=spec.threshold_rule
         )
 
+    @renamed_keyword("rule", "threshold_rule")
     def summary(
         self,
         threshold: float | None = None,
-        rule: str = "strict",
+        threshold_rule: str = "strict",
         *,
         warn: bool = True,
         step: int | None = None,
     ) -> Summary:
         """The summary at the last step (:meth:`Ensemble.summary <warpratchet.ensemble.Ensemble.summary>`),
-        or at ``step``, one of the history's row steps, with the run's threshold (or rule)."""
+        or at ``step``, one of the history's row steps, with the run's threshold (or threshold rule).
+        ``rule=`` is the former spelling of ``threshold_rule=`` (a :class:`DeprecationWarning`)."""
         step = self.step if step is None else step
         if step not in self._steps:
             raise ValueError(f"step = {step} is not one of the steps the shards recorded: {self._steps}")
-        key = (step, threshold, rule)
+        key = (step, threshold, threshold_rule)
         result = self._summaries.get(key)
         if result is None:
             raise ValueError(
-                f"threshold = {threshold}, rule = {rule}: the merge summarised the run's own "
-                f"(threshold = {self.spec.threshold}, rule = {self.spec.threshold_rule})"
+                f"threshold = {threshold}, threshold_rule = {threshold_rule}: the merge summarised the "
+                f"run's own (threshold = {self.spec.threshold}, threshold_rule = {self.spec.threshold_rule})"
             )
         if warn:
             result.warn()
