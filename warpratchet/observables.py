@@ -102,6 +102,17 @@ def lyapunov(state: dict[str, np.ndarray], step: int) -> np.ndarray:
     return (state["log_stretch"] + np.log(np.hypot(state["dx"], state["dp"]))) / step
 
 
+def _momentum_gain_into(
+    state: Mapping[str, np.ndarray], lo: int, hi: int, out: np.ndarray, scratch: np.ndarray
+) -> np.ndarray:
+    """:func:`momentum_gain` of points ``lo:hi`` of ``state`` into ``out`` (shape ``(hi - lo,)``):
+    its operations in its order, so its bits, with ``scratch`` (the same shape) for the temporary."""
+    p0 = state["p0"][lo:hi]
+    np.subtract(p0, np.floor(p0, out=scratch), out=scratch)
+    np.subtract(state["q"][lo:hi], scratch, out=scratch)
+    return np.add(state["winding"][lo:hi], scratch, out=out)
+
+
 def _lyapunov_into(
     state: Mapping[str, np.ndarray], step: int, lo: int, hi: int, out: np.ndarray
 ) -> np.ndarray:
@@ -544,10 +555,7 @@ def summarize_with_variance(
                     _lyapunov_into(x, step, lo, hi, f)
                 else:
                     f = ftle[lo:hi]
-                p0 = x["p0"][lo:hi]  # momentum_gain's operations, in its order
-                np.subtract(p0, np.floor(p0, out=a), out=a)
-                np.subtract(x["q"][lo:hi], a, out=a)
-                np.add(x["winding"][lo:hi], a, out=g)
+                _momentum_gain_into(x, lo, hi, g, a)
                 np.divide(g, step, out=a)
                 finite = finite and bool(np.isfinite(f).all() and np.isfinite(a).all())
                 mask = f > threshold

@@ -121,6 +121,31 @@ def test_a_shard_that_does_not_fit_a_worker_is_refused_with_the_numbers(client):
     assert "at least 2" in str(err.value)
 
 
+@pytest.mark.parametrize("threads", [1, 3])
+def test_a_shards_row_records_are_the_gain_and_lyapunovs_numerator_bit_for_bit(monkeypatch, threads):
+    """A shard's row records, made in pieces on the run's threads (the last piece short), are
+    ``momentum_gain`` and ``log_stretch + log(hypot(dx, dp))`` as NumPy gives them over the whole
+    arrays, non-finite tangents and -0.0 included."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from warpratchet.cluster import _shard
+    from warpratchet.observables import momentum_gain
+
+    monkeypatch.setattr(_shard, "RECORD_PIECE", 64)
+    ens = Ensemble.sample(SPEC.params, 1001, "torus", seed=2, threads=1).run(40)
+    views = ens.state()
+    views["dx"][[3, 500]] = [np.inf, np.nan]
+    views["dp"][999] = -0.0
+    views["dx"][999] = 0.0  # a zero norm: log gives -inf
+    gain, stretch = np.full((2, 1001), np.nan)
+    with ThreadPoolExecutor(threads) as pool:
+        _shard._row_records(views, gain, stretch, pool if threads > 1 else None, threads)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        want = views["log_stretch"] + np.log(np.hypot(views["dx"], views["dp"]))
+    assert [bits(float(v)) for v in gain] == [bits(float(v)) for v in momentum_gain(views)]
+    assert [bits(float(v)) for v in stretch] == [bits(float(v)) for v in want]
+
+
 @pytest.mark.parametrize("init", ["strip", "torus", "grid"])
 def test_shards_draw_their_slice_of_the_ensembles_points(init):
     """A shard's records are the whole run's rows of its points (here without a cluster)."""

@@ -24,7 +24,7 @@ from ..archive._format import SNAPSHOT_FIELDS
 from ..archive._rows import snapshot_indices, snapshot_row
 from ..errors import ParameterError
 from ..history import BLOCKS, block_steps, block_subsample, history_steps
-from ..observables import lyapunov, momentum_gain
+from ..observables import _batched, _lyapunov_into, _momentum_gain_into, lyapunov, momentum_gain
 from ..runloop import Observer
 from ..spec import RunSpec
 from ._plan import _ensemble_size, _kind
@@ -69,6 +69,29 @@ def _step_path(folder: str, step: int) -> str:
     return os.path.join(folder, f"step-{step:012d}.npz")
 
 
+#: Points per piece of a row's records: a piece's temporaries stay in a core's cache.
+RECORD_PIECE = 1 << 14
+
+
+def _row_records(
+    views: dict[str, np.ndarray], gain: np.ndarray, stretch: np.ndarray, pool: Any, threads: int
+) -> None:
+    """Every point's gain (:func:`~warpratchet.observables.momentum_gain`) and stretch (the numerator
+    of :func:`~warpratchet.observables.lyapunov`, which the merge divides by n as it does) into
+    ``gain`` and ``stretch``, shape ``(points,)``: their operations in their order, so their bits,
+    in pieces of :data:`RECORD_PIECE` points on ``pool``'s threads (the run's, idle between its
+    launches; here without one) and without full-size temporaries."""
+
+    def piece(lo: int, hi: int) -> None:
+        # stretch[lo:hi] holds the gain's temporary until the stretch is written over it
+        _momentum_gain_into(views, lo, hi, gain[lo:hi], stretch[lo:hi])
+        _lyapunov_into(views, 1, lo, hi, stretch[lo:hi])  # divided by n = 1: the numerator itself
+
+    n = gain.size
+    jobs = [lambda lo=lo: piece(lo, min(n, lo + RECORD_PIECE)) for lo in range(0, n, RECORD_PIECE)]
+    _batched(pool, jobs, threads)
+
+
 class _Recorder(Observer):
     """Keeps a shard's :class:`ShardRecord` arrays at the row and block steps (ends chunks there).
 
@@ -109,11 +132,11 @@ class _Recorder(Observer):
         due = {}
         if step in self.steps:
             row = self.steps.index(step)
-            gain = momentum_gain(views)
-            # lyapunov's numerator: the merge divides it by n, as lyapunov does
-            stretch = views["log_stretch"] + np.log(np.hypot(views["dx"], views["dp"]))
             if self.folder is None:
-                self.gain[row], self.stretch[row] = gain, stretch
+                gain, stretch = self.gain[row], self.stretch[row]
+            else:
+                gain, stretch = np.empty((2, len(views["p0"])))
+            _row_records(views, gain, stretch, ensemble.run_pool, ensemble.threads)
             due.update(gain=gain, stretch=stretch)
         if step in self.blocks:
             row = self.blocks.index(step)
