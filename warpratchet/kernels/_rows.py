@@ -388,9 +388,9 @@ def _gate_verdict() -> bool:
 
 
 def row_pass_available() -> bool:
-    """Whether :class:`RowPass` computes the FTLE itself here (:func:`._libm.matches_numpy`); known
-    once per process (and per machine: :func:`_gate_verdict`). Without it a row pass needs the FTLE
-    given."""
+    """Whether :class:`RowPass` computes the FTLE in its kernel here (:func:`._libm.matches_numpy`);
+    known once per process (and per machine: :func:`_gate_verdict`). Without it a row pass takes
+    NumPy's own FTLE, made just before its kernel pass."""
     global _available
     with _available_lock:
         if _available is None:
