@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 import warp as wp
 
-from ..observables import _lyapunov_into
+from ..observables import _buffer, _lyapunov_into
 from . import _libm
 from ._libm import GLIBC_FTLE_CPP, matches_numpy
 from ._runtime import CPU_MODULE_OPTIONS, arrays_struct, init_warp
@@ -433,21 +433,17 @@ class RowPass:
             dtype = wp.int64 if name == "winding" else wp.float64
             setattr(self.inputs, name, _wrap(np.ascontiguousarray(state[name]), dtype))
         buffers = {} if buffers is None else buffers
-        names = ["chaotic_ftle", "chaotic_acc", "ambiguous_acc"]
+        # kept at the largest size asked for: a summary's chunks differ in size
+        self.buffers = {
+            name: _buffer(buffers, f"row pass {name}", n)
+            for name in ("chaotic_ftle", "chaotic_acc", "ambiguous_acc")
+        }
         # Where the kernel's hypot and log would not be NumPy's, the FTLE is NumPy's, computed in
         # this pass's own buffer group by group (__call__), and the kernel takes it as given.
         self.state = state
         self.own_ftle = ftle is None and not row_pass_available()
         if self.own_ftle:
-            names.append("ftle")
-        self.buffers = {}
-        for name in names:
-            kept = buffers.get(f"row pass {name}")
-            if kept is None or kept.size < n:  # a summary's chunks differ in size: the largest
-                kept = buffers[f"row pass {name}"] = np.empty(n)
-            self.buffers[name] = kept[:n]
-        if self.own_ftle:
-            ftle = self.ftle = self.buffers.pop("ftle")
+            ftle = self.ftle = _buffer(buffers, "row pass ftle", n)
         empty = np.empty(0) if ftle is None else np.ascontiguousarray(ftle, dtype=np.float64)
         self.inputs.ftle = _wrap(empty, wp.float64)
 
