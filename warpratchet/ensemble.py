@@ -39,8 +39,9 @@ from .errors import (
     renamed_keyword,
 )
 from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
-from .limits import MAX_POINTS, MAX_STEP, check_kernel_range, check_memory, format_bytes
+from .limits import MAX_POINTS, MAX_STEP, available_memory, check_kernel_range, check_memory, format_bytes
 from .observables import (
+    KEPT_BYTES_PER_POINT,
     SUMMARY_BYTES_PER_POINT,
     SUMMARY_CHUNK,
     TREE_LEAF,
@@ -49,6 +50,7 @@ from .observables import (
     lyapunov_threshold,
     summarize,
     summarize_with_variance,
+    summary_chunks,
 )
 from .params import MapParams
 from .runloop import (
@@ -429,6 +431,7 @@ class Ensemble:
             run_chunks(self, self.step + steps, observers, chunk_steps, pool)
         finally:
             self._run_pool = None
+            self._let_go_of_kept()  # a run's memory, not the ensemble's
             if sink is not None:
                 with deferred_interrupts():  # a second Ctrl-C does not cut the archive's close
                     sink.close()
@@ -465,7 +468,7 @@ class Ensemble:
         args = (views, self.step, threshold, ftle)
         # the per-point pass and the sums in kernels, NumPy's bits (the FTLE in the pass where its
         # functions are NumPy's here, else NumPy's own just before it: kernels.RowPass)
-        options: dict[str, Any] = {"buffers": self._row_buffers}
+        options: dict[str, Any] = {"buffers": self._row_buffers, "keep_chunks": self._keeps_chunks()}
         few = self.points < 4 * TREE_LEAF  # a few leaves: not worth the threads, nor the launches
         if not few:
             options["leaf_pass"] = functools.partial(kernels.RowPass, buffers=self._row_buffers)
@@ -485,6 +488,24 @@ class Ensemble:
             return None
         self._variance = (self.step, done[1])
         return done[0]
+
+    def _keeps_chunks(self) -> bool:
+        """Whether a summary keeps its chunks' values for its second pass instead of making them
+        again (``summarize_with_variance``'s ``keep_chunks``, in :attr:`_row_buffers` from one
+        row of a run to the next): with more than one chunk, where half the memory available now, and
+        what they hold already, holds them. Where not, what they hold is let go."""
+        kept = summary_chunks(self.points)[-1][0] * KEPT_BYTES_PER_POINT  # all chunks but the last
+        spare = available_memory() if kept else None
+        held = sum(values.nbytes for name, values in self._row_buffers.items() if name.startswith("kept"))
+        if spare is not None and kept <= (spare + held) // 2:
+            return True
+        self._let_go_of_kept()
+        return False
+
+    def _let_go_of_kept(self) -> None:
+        """Drop the chunks' values that summaries kept (:meth:`_keeps_chunks`)."""
+        for name in [name for name in self._row_buffers if name.startswith("kept")]:
+            del self._row_buffers[name]
 
     @renamed_keyword("rule", "threshold_rule")
     def summary(

@@ -387,6 +387,10 @@ def summarize(
     return summary_from_sums(step, threshold, n, first, second)
 
 
+#: Bytes a point that :func:`summarize_with_variance` keeps of a chunk with ``keep_chunks``: its gain
+#: and, at most (every point chaotic and ambiguous), its three gathered values.
+KEPT_BYTES_PER_POINT = 32
+
 #: Most values in a leaf of :func:`summarize_with_variance`'s summation trees: a leaf's temporaries
 #: (a few arrays of this length) stay in a core's cache. The sums over the gathered values take
 #: leaves of :data:`SUM_LEAF` values (one temporary each, fewer calls).
@@ -431,6 +435,13 @@ def _buffer(buffers: dict, name: str, size: int) -> np.ndarray:
     if kept is None or kept.size < size:
         kept = buffers[name] = np.empty(size)
     return kept[:size]
+
+
+def _copy(values: np.ndarray, buffers: dict, name: str) -> np.ndarray:
+    """A copy of the float64 ``values`` in ``buffers[name]`` (:func:`_buffer`)."""
+    copy = _buffer(buffers, name, values.size)
+    copy[...] = values
+    return copy
 
 
 def _contiguous(parts: list[np.ndarray], buffers: dict, name: str) -> np.ndarray:
@@ -482,6 +493,7 @@ def summarize_with_variance(
     leaf_pass: Callable | None = None,
     leaf_sums: Callable | None = None,
     buffers: dict | None = None,
+    keep_chunks: bool = False,
 ) -> tuple[Summary, float] | None:
     """:func:`summarize` and the variance (ddof 1) of every point's :func:`momentum_gain` (a history
     row's ``var_dp_all``), bit for bit, in fewer passes and on ``pool``'s threads.
@@ -493,7 +505,10 @@ def summarize_with_variance(
     (:func:`tree_total`); the chunks' sums are then put together as :func:`summarize` and the
     history's variance put them together. So every number is theirs. With more than one chunk the
     per-point pass runs again for every chunk but the last (for the deviations from the means of
-    all chunks), so that the memory stays that of one chunk. ``batches``: how many pieces each pass of
+    all chunks), so that the memory stays that of one chunk; ``keep_chunks`` keeps their gathered
+    values and gains instead (a copy in ``buffers``, under names that start with ``"kept"``: at most
+    :data:`KEPT_BYTES_PER_POINT` bytes a point of every chunk but the last), for a caller that has
+    the memory. ``batches``: how many pieces each pass of
     a chunk is cut into for the pool. ``threshold``: the FTLE threshold itself (a rule's is
     :func:`lyapunov_threshold`). Returns None where a value is not finite (:func:`summarize` says
     which, in its error).
@@ -641,20 +656,28 @@ def summarize_with_variance(
         return squares, gains
 
     firsts = []
-    for lo, hi in bounds:
+    last = len(bounds) - 1
+    for index, (lo, hi) in enumerate(bounds):
         done = first_pass(lo, hi)
         if done is None:
             return None
+        if keep_chunks and index < last:  # the buffers are the next chunk's: keep a copy
+            sums, total, gathered, gain = done
+            copies = [
+                _copy(values, buffers, f"kept {index} {i}") for i, values in enumerate((*gathered, gain))
+            ]
+            done = (sums, total, tuple(copies[:3]), copies[3])
         firsts.append(done)
     first = [part[0] for part in firsts]
     means = summary_means(first) if needs_squares(first) else None
     # history's variance (history._variance): the mean from the chunks' sums as Python floats
     mean = math.fsum(float(part[1]) for part in firsts) / n if n >= 2 else math.nan
     # The last chunk's gathered values and gains are still in the buffers; every other chunk's
-    # are made again (one chunk's memory). Its sums are then put together in the chunks' order.
+    # are kept or made again (one chunk's memory). Its sums are then put together in the chunks'
+    # order.
     seconds: list = [None] * len(bounds)
     for index in reversed(range(len(bounds))):
-        part = firsts[index] if index == len(bounds) - 1 else first_pass(*bounds[index])
+        part = firsts[index] if keep_chunks or index == last else first_pass(*bounds[index])
         seconds[index] = second_pass(part[2], part[3], means, mean)
     second, squares = [], 0.0
     for chunk_squares, gains in seconds:

@@ -2,6 +2,7 @@
 and within the rounding bound of pairwise summation beyond it."""
 
 import functools
+import itertools
 import math
 
 import numpy as np
@@ -9,6 +10,7 @@ import pytest
 
 from warpratchet import kernels, observables
 from warpratchet.ensemble import Ensemble
+from warpratchet.history import History
 from warpratchet.observables import (
     AMBIGUITY_FACTOR,
     finite_time_acceleration,
@@ -219,14 +221,62 @@ def test_the_summary_with_variance_leaves_what_it_cannot_do_to_summarize(libm_ga
         summarize(state, 50)
 
 
+def test_a_summary_keeps_its_chunks_for_the_second_pass_where_the_memory_is_there(monkeypatch):
+    """``keep_chunks``: the per-point pass runs once per chunk, not again for every chunk but the
+    last. An ensemble keeps them where half the memory available holds them (never with one
+    chunk, nor where the memory is not known), and its summary is the same bits either way; a run
+    lets go of them at its end."""
+    from warpratchet import ensemble as module
+
+    monkeypatch.setattr(observables, "SUMMARY_CHUNK", 10_000)  # 4 chunks
+    state = _state(40_000, 300, seed=5)
+    for keep, passes in ((False, 7), (True, 4)):
+        chunks = []
+
+        def leaf_pass(x, ftle, chunks=chunks):
+            chunks.append(len(x["p0"]))
+            return kernels.RowPass(x, ftle)
+
+        observables.summarize_with_variance(
+            state, 300, 0.05, leaf_pass=leaf_pass, leaf_sums=kernels.leaf_sums, keep_chunks=keep
+        )
+        assert len(chunks) == passes
+    ens = Ensemble.from_state(MapParams(3.0, 0.1, 0.01), state, 300, threads=2)
+    summaries = []
+    kept = 30_000 * observables.KEPT_BYTES_PER_POINT  # every chunk but the last
+    # what it holds already counts as available: the next row reuses it
+    for spare, keeps in (
+        (None, False),
+        (2 * kept - 1, False),
+        (2 * kept, True),
+        (2 * kept - 1, True),
+        (None, False),
+    ):
+        monkeypatch.setattr(module, "available_memory", lambda spare=spare: spare)
+        assert ens._keeps_chunks() is keeps
+        ens._summaries.clear()
+        summaries.append(ens.summary(0.05, warn=False).as_dict())
+    assert all(summary == summaries[0] for summary in summaries)  # (no value is NaN here)
+    assert not any(name.startswith("kept") for name in ens._row_buffers)  # let go where not kept
+    monkeypatch.setattr(module, "available_memory", lambda: 10**12)
+    ens.summary(0.04, warn=False)
+    assert any(name.startswith("kept") for name in ens._row_buffers)
+    ens.run(20, observers=[History()])  # a run lets go of them at its end
+    assert not any(name.startswith("kept") for name in ens._row_buffers)
+    monkeypatch.setattr(observables, "SUMMARY_CHUNK", 40_000)  # one chunk: nothing to keep
+    monkeypatch.setattr(module, "available_memory", lambda: 10**12)
+    assert not ens._keeps_chunks()
+
+
 @pytest.mark.parametrize(("chunk", "threads"), [(1000, 1), (1000, 2), (4096, 3), (39_999, 2)])
 def test_past_one_chunk_the_summary_with_variance_adds_the_chunks_as_summarize_does(
     monkeypatch, chunk, threads, libm_gate
 ):
     """More points than :data:`SUMMARY_CHUNK`: ``summarize`` adds up its chunks' sums (not NumPy's
     pairwise sum of the whole array) and the history's variance adds the chunks' sums as Python
-    floats; the summary with variance, in NumPy or in the kernels, on the threads, gives the same
-    bits (the chunk shrunk here, so that 40,000 points make 10, 3 or 2 chunks, the last a part)."""
+    floats; the summary with variance, in NumPy or in the kernels, on the threads, with the chunks'
+    values made again or kept for the second pass, gives the same bits (the chunk shrunk here, so
+    that 40,000 points make 10, 3 or 2 chunks, the last a part)."""
     from concurrent.futures import ThreadPoolExecutor
 
     monkeypatch.setattr(observables, "SUMMARY_CHUNK", chunk)  # the history variance's chunks too
@@ -237,7 +287,7 @@ def test_past_one_chunk_the_summary_with_variance_adds_the_chunks_as_summarize_d
         want, variance = _reference(state, 300, threshold)
         buffers = {}
         ways = [(None, None, None)] + [(known, kernels.RowPass, kernels.leaf_sums) for known in (ftle, None)]
-        for known, leaf_pass, leaf_sums in ways:
+        for (known, leaf_pass, leaf_sums), keep in itertools.product(ways, (False, True)):
             with ThreadPoolExecutor(threads) as pool:
                 got, var = observables.summarize_with_variance(
                     state,
@@ -249,6 +299,7 @@ def test_past_one_chunk_the_summary_with_variance_adds_the_chunks_as_summarize_d
                     leaf_pass=None if leaf_pass is None else functools.partial(leaf_pass, buffers=buffers),
                     leaf_sums=leaf_sums,
                     buffers=buffers,
+                    keep_chunks=keep,
                 )
             for name, value in want.as_dict().items():
                 assert got.as_dict()[name] == value or _same_bits(got.as_dict()[name], value), name
