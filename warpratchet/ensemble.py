@@ -351,6 +351,7 @@ class Ensemble:
     #: Why the state cannot be trusted (set when an error stopped a chunk partway), else None.
     undefined: str | None = None
     _run_pool: ThreadPoolExecutor | None = None
+    _running = False  # inside run(): summaries keep what the next row reuses (_keeps_chunks)
 
     @property
     def run_pool(self) -> ThreadPoolExecutor | None:
@@ -428,9 +429,11 @@ class Ensemble:
             use_pool = wp.get_device(self.device).is_cpu and self.threads > 1 and self.points > 1
             pool = ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet") if use_pool else None
             self._run_pool = pool  # the observers' per-point work runs on it too (run_pool)
+            self._running = True
             run_chunks(self, self.step + steps, observers, chunk_steps, pool)
         finally:
             self._run_pool = None
+            self._running = False
             self._let_go_of_kept()  # a run's memory, not the ensemble's
             if sink is not None:
                 with deferred_interrupts():  # a second Ctrl-C does not cut the archive's close
@@ -483,6 +486,8 @@ class Ensemble:
         else:
             with ThreadPoolExecutor(self.threads, thread_name_prefix="warpratchet-rows") as pool:
                 done = summarize_with_variance(*args, pool=pool, batches=batches, **options)
+        if not self._running:
+            self._let_go_of_kept()  # no next row to reuse them
         if done is None:
             self._row_buffers.clear()  # summarize needs the memory (SUMMARY_BYTES_PER_POINT)
             return None
@@ -491,9 +496,9 @@ class Ensemble:
 
     def _keeps_chunks(self) -> bool:
         """Whether a summary keeps its chunks' values for its second pass instead of making them
-        again (``summarize_with_variance``'s ``keep_chunks``, in :attr:`_row_buffers` from one
-        row of a run to the next): with more than one chunk, where half the memory available now, and
-        what they hold already, holds them. Where not, what they hold is let go."""
+        again (``summarize_with_variance``'s ``keep_chunks``; in :attr:`_row_buffers`, from one
+        row of a run to the next): with more than one chunk, where half the memory available now
+        and what they hold already holds them. Where not, what they hold is let go."""
         kept = summary_chunks(self.points)[-1][0] * KEPT_BYTES_PER_POINT  # all chunks but the last
         spare = available_memory() if kept else None
         held = sum(values.nbytes for name, values in self._row_buffers.items() if name.startswith("kept"))

@@ -508,8 +508,8 @@ def summarize_with_variance(
     all chunks), so that the memory stays that of one chunk; ``keep_chunks`` keeps their gathered
     values and gains instead (a copy in ``buffers``, under names that start with ``"kept"``: at most
     :data:`KEPT_BYTES_PER_POINT` bytes a point of every chunk but the last), for a caller that has
-    the memory. ``batches``: how many pieces each pass of
-    a chunk is cut into for the pool. ``threshold``: the FTLE threshold itself (a rule's is
+    the memory. ``batches``: how many pieces each pass of a chunk is cut into for the pool.
+    ``threshold``: the FTLE threshold itself (a rule's is
     :func:`lyapunov_threshold`). Returns None where a value is not finite (:func:`summarize` says
     which, in its error).
 

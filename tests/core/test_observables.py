@@ -225,7 +225,8 @@ def test_a_summary_keeps_its_chunks_for_the_second_pass_where_the_memory_is_ther
     """``keep_chunks``: the per-point pass runs once per chunk, not again for every chunk but the
     last. An ensemble keeps them where half the memory available holds them (never with one
     chunk, nor where the memory is not known), and its summary is the same bits either way; a run
-    lets go of them at its end."""
+    keeps them from one row to the next and lets go at its end; a summary outside a run lets go
+    at once."""
     from warpratchet import ensemble as module
 
     monkeypatch.setattr(observables, "SUMMARY_CHUNK", 10_000)  # 4 chunks
@@ -244,14 +245,7 @@ def test_a_summary_keeps_its_chunks_for_the_second_pass_where_the_memory_is_ther
     ens = Ensemble.from_state(MapParams(3.0, 0.1, 0.01), state, 300, threads=2)
     summaries = []
     kept = 30_000 * observables.KEPT_BYTES_PER_POINT  # every chunk but the last
-    # what it holds already counts as available: the next row reuses it
-    for spare, keeps in (
-        (None, False),
-        (2 * kept - 1, False),
-        (2 * kept, True),
-        (2 * kept - 1, True),
-        (None, False),
-    ):
+    for spare, keeps in ((None, False), (2 * kept - 1, False), (2 * kept, True), (None, False)):
         monkeypatch.setattr(module, "available_memory", lambda spare=spare: spare)
         assert ens._keeps_chunks() is keeps
         ens._summaries.clear()
@@ -259,12 +253,22 @@ def test_a_summary_keeps_its_chunks_for_the_second_pass_where_the_memory_is_ther
     assert all(summary == summaries[0] for summary in summaries)  # (no value is NaN here)
     assert not any(name.startswith("kept") for name in ens._row_buffers)  # let go where not kept
     monkeypatch.setattr(module, "available_memory", lambda: 10**12)
-    ens.summary(0.04, warn=False)
-    assert any(name.startswith("kept") for name in ens._row_buffers)
-    ens.run(20, observers=[History()])  # a run lets go of them at its end
+    seen = []  # whether the summaries held kept values at the end of a history row
+
+    class Rows(History):
+        def after_chunk(self, ensemble, seconds):
+            super().after_chunk(ensemble, seconds)
+            seen.append(any(name.startswith("kept") for name in ensemble._row_buffers))
+            # what they hold counts as available: the next row reuses it
+            monkeypatch.setattr(module, "available_memory", lambda: 2 * kept - 1)
+
+    ens.run(20, observers=[Rows()])  # a run keeps them from row to row, and lets go at its end
+    assert len(seen) >= 2 and all(seen)
+    assert not any(name.startswith("kept") for name in ens._row_buffers)
+    monkeypatch.setattr(module, "available_memory", lambda: 10**12)
+    ens.summary(0.04, warn=False)  # outside a run it keeps them for its own second pass only
     assert not any(name.startswith("kept") for name in ens._row_buffers)
     monkeypatch.setattr(observables, "SUMMARY_CHUNK", 40_000)  # one chunk: nothing to keep
-    monkeypatch.setattr(module, "available_memory", lambda: 10**12)
     assert not ens._keeps_chunks()
 
 
