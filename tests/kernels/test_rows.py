@@ -177,3 +177,24 @@ def test_the_pass_gives_momentum_gains_bits_at_every_winding():
     assert _bits(done[1][0]) == _bits(a_n[chaotic])
     assert _bits(done[2][0]) == _bits(a_n[(ftle > threshold / 10) & (ftle < threshold * 10)])
     assert done[3] == ftle[chaotic].min() and done[4]
+
+
+@pytest.mark.parametrize("gate", ["as found", "off"])
+def test_lyapunov_into_is_lyapunovs_bits_for_any_stretch_of_points(monkeypatch, gate):
+    """``lyapunov_into`` gives :func:`~warpratchet.observables.lyapunov` of the points asked for, bit
+    for bit: in the kernel where the gate allows it, else (and for a stretch with a tangent that is
+    not finite) in NumPy; a zero norm gives -inf as NumPy's ``log`` does."""
+    from warpratchet.kernels import _rows
+
+    if gate == "off":
+        monkeypatch.setattr(_rows, "_available", False)
+    state = _random_state(3000, stretch=40.0)
+    state["dx"][2000], state["dp"][2000] = 0.0, -0.0  # a zero norm
+    state["dp"][2500] = np.nan  # a stretch with one of these goes to NumPy
+    state["dx"][2550], state["dp"][2550] = -np.inf, np.nan  # hypot gives inf
+    with np.errstate(divide="ignore", invalid="ignore"):
+        want = lyapunov(state, 7)
+    for lo, hi in ((0, 3000), (0, 1), (1000, 2001), (2400, 2600), (2999, 3000)):
+        got = np.full(hi - lo, 0.5)
+        assert kernels.lyapunov_into(state, 7, lo, hi, got) is got
+        assert got.view(np.int64).tolist() == want[lo:hi].view(np.int64).tolist(), (lo, hi)

@@ -121,17 +121,21 @@ def test_a_shard_that_does_not_fit_a_worker_is_refused_with_the_numbers(client):
     assert "at least 2" in str(err.value)
 
 
-@pytest.mark.parametrize("threads", [1, 3])
-def test_a_shards_row_records_are_the_gain_and_lyapunovs_numerator_bit_for_bit(monkeypatch, threads):
+@pytest.mark.parametrize(("threads", "gate"), [(1, "as found"), (3, "as found"), (3, "off")])
+def test_a_shards_row_records_are_the_gain_and_lyapunovs_numerator_bit_for_bit(monkeypatch, threads, gate):
     """A shard's row records, made in pieces on the run's threads (the last piece short), are
     ``momentum_gain`` and ``log_stretch + log(hypot(dx, dp))`` as NumPy gives them over the whole
-    arrays, non-finite tangents and -0.0 included."""
+    arrays, non-finite tangents and -0.0 included: the stretch in the kernel where the libm gate
+    allows it, else in NumPy."""
     from concurrent.futures import ThreadPoolExecutor
 
     from warpratchet.cluster import _shard
+    from warpratchet.kernels import _rows
     from warpratchet.observables import momentum_gain
 
     monkeypatch.setattr(_shard, "RECORD_PIECE", 64)
+    if gate == "off":
+        monkeypatch.setattr(_rows, "_available", False)
     ens = Ensemble.sample(SPEC.params, 1001, "torus", seed=2, threads=1).run(40)
     views = ens.state()
     views["dx"][[3, 500]] = [np.inf, np.nan]

@@ -19,12 +19,13 @@ from typing import Any
 
 import numpy as np
 
+from .. import kernels
 from .._cluster_archive import shard_paths, snapshot_file, snapshot_steps
 from ..archive._format import SNAPSHOT_FIELDS
 from ..archive._rows import snapshot_indices, snapshot_row
 from ..errors import ParameterError
 from ..history import BLOCKS, block_steps, block_subsample, history_steps
-from ..observables import _batched, _lyapunov_into, _momentum_gain_into, lyapunov, momentum_gain
+from ..observables import _batched, _momentum_gain_into, lyapunov, momentum_gain
 from ..runloop import Observer
 from ..spec import RunSpec
 from ._plan import _ensemble_size, _kind
@@ -69,8 +70,9 @@ def _step_path(folder: str, step: int) -> str:
     return os.path.join(folder, f"step-{step:012d}.npz")
 
 
-#: Points per piece of a row's records: a piece's temporaries stay in a core's cache.
-RECORD_PIECE = 1 << 14
+#: Points per piece of a row's records: few calls of the FTLE kernel, a piece's arrays in a
+#: core's cache between its two passes (gain, then stretch).
+RECORD_PIECE = 1 << 17
 
 
 def _row_records(
@@ -78,14 +80,15 @@ def _row_records(
 ) -> None:
     """Every point's gain (:func:`~warpratchet.observables.momentum_gain`) and stretch (the numerator
     of :func:`~warpratchet.observables.lyapunov`, which the merge divides by n as it does) into
-    ``gain`` and ``stretch``, shape ``(points,)``: their operations in their order, so their bits,
-    in pieces of :data:`RECORD_PIECE` points on ``pool``'s threads (the run's, idle between its
-    launches; here without one) and without full-size temporaries."""
+    ``gain`` and ``stretch``, shape ``(points,)``: their operations in their order, so their bits
+    (the stretch by :func:`warpratchet.kernels.lyapunov_into`: in a kernel where the libm gate
+    allows it), in pieces of :data:`RECORD_PIECE` points on ``pool``'s threads (the run's, idle
+    between its launches; here without one) and without full-size temporaries."""
 
     def piece(lo: int, hi: int) -> None:
         # stretch[lo:hi] holds the gain's temporary until the stretch is written over it
         _momentum_gain_into(views, lo, hi, gain[lo:hi], stretch[lo:hi])
-        _lyapunov_into(views, 1, lo, hi, stretch[lo:hi])  # divided by n = 1: the numerator itself
+        kernels.lyapunov_into(views, 1, lo, hi, stretch[lo:hi])  # divided by n = 1: the numerator itself
 
     n = gain.size
     jobs = [lambda lo=lo: piece(lo, min(n, lo + RECORD_PIECE)) for lo in range(0, n, RECORD_PIECE)]

@@ -15,8 +15,9 @@ the ensemble layer shards points over one Python thread per core.
 * :mod:`._logarithm`: ``fdlog``, the indicators' logarithm, the same bits on every body;
 * :mod:`._libm`: the C library's ``hypot`` and ``log`` as NumPy calls them, for kernels that must
   give NumPy's bits (the history rows' FTLE), and the gate that says whether they do here;
-* :mod:`._rows`: a history row's per-point pass (``RowPass``) and NumPy's pairwise sums
-  (``leaf_sums``), the bits of :func:`warpratchet.observables.summarize_with_variance`'s NumPy path;
+* :mod:`._rows`: a history row's per-point pass (``RowPass``), NumPy's pairwise sums
+  (``leaf_sums``) and the FTLE alone (``lyapunov_into``), the bits of
+  :func:`warpratchet.observables.summarize_with_variance`'s NumPy path;
 * :mod:`._runtime`: Warp start-up and the compiler options.
 
 The CPU body is built for one vector instruction set (:data:`._runtime.CPU_ISA`: AVX-512 where the
@@ -35,7 +36,7 @@ reaches against the hand-vectorised C of its instruction set, are in ``benchmark
 from ._advance import MAX_LAUNCH_STEPS, AdvanceKernel, Variant, advance_kernel, launch_dim
 from ._indicators import INDICATOR_FIELDS, advance_map_indicators
 from ._map import advance_map
-from ._rows import SUM_TERMS, RowPass, leaf_sums, row_pass_available
+from ._rows import SUM_TERMS, RowPass, leaf_sums, lyapunov_into, row_pass_available
 from ._runtime import CPU_ISA, init_warp
 from ._step import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD, Lanes
 from ._transport import advance_map_transport
@@ -46,6 +47,7 @@ __all__ = [
     "advance_map_transport",
     "RowPass",
     "leaf_sums",
+    "lyapunov_into",
     "row_pass_available",
     "SUM_TERMS",
     "INDICATOR_FIELDS",

@@ -553,14 +553,15 @@ if (quantity == {FTLE}) {{
     return kernel
 
 
-def _run(quantity: int, a, b, c, step: float, source: str) -> tuple[np.ndarray, np.ndarray]:
-    """The array kernel of ``source`` on ``a, b, c`` (broadcast together), on the CPU."""
+def _run(quantity: int, a, b, c, step: float, source: str, out=None) -> tuple[np.ndarray, np.ndarray]:
+    """The array kernel of ``source`` on ``a, b, c`` (broadcast together), on the CPU; into ``out``
+    (contiguous float64 of their size) if given."""
     init_warp()
     check_cpu_isa_runs()
     arrays = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in (a, b, c)))
     shape = arrays[0].shape
     a, b, c = (np.ascontiguousarray(x.reshape(-1)) for x in arrays)
-    out = np.empty(a.size, dtype=np.float64)
+    out = np.empty(a.size, dtype=np.float64) if out is None else out.reshape(-1)
     ok = np.empty(a.size, dtype=np.uint8)
     if a.size:
         packed = _Arrays()
@@ -576,7 +577,7 @@ def _run(quantity: int, a, b, c, step: float, source: str) -> tuple[np.ndarray, 
     return out.reshape(shape), ok.astype(bool).reshape(shape)
 
 
-def ftle_like_numpy(dx, dp, log_stretch, step: float, *, source: str = GLIBC_FTLE_CPP):
+def ftle_like_numpy(dx, dp, log_stretch, step: float, *, source: str = GLIBC_FTLE_CPP, out=None):
     """``(log_stretch + log(hypot(dx, dp))) / step`` by :data:`GLIBC_FTLE_CPP`, on the CPU.
 
     Parameters
@@ -587,6 +588,8 @@ def ftle_like_numpy(dx, dp, log_stretch, step: float, *, source: str = GLIBC_FTL
         The step the exponent is taken at.
     source : str
         The C++ to run (a variant, in tests).
+    out : numpy.ndarray of float64, optional
+        Where the exponents go (contiguous, of the arguments' broadcast shape).
 
     Returns
     -------
@@ -595,7 +598,7 @@ def ftle_like_numpy(dx, dp, log_stretch, step: float, *, source: str = GLIBC_FTL
     ok : numpy.ndarray of bool
         Where ``out`` is the transcription's: ``dx`` and ``dp`` finite.
     """
-    return _run(FTLE, dx, dp, log_stretch, step, source)
+    return _run(FTLE, dx, dp, log_stretch, step, source, out)
 
 
 def hypot_like_numpy(x, y, *, source: str = GLIBC_FTLE_CPP):

@@ -37,7 +37,7 @@ from . import _libm
 from ._libm import GLIBC_FTLE_CPP, matches_numpy
 from ._runtime import CPU_MODULE_OPTIONS, arrays_struct, init_warp
 
-__all__ = ["ROW_FIELDS", "SUM_TERMS", "RowPass", "leaf_sums", "row_pass_available"]
+__all__ = ["ROW_FIELDS", "SUM_TERMS", "RowPass", "leaf_sums", "lyapunov_into", "row_pass_available"]
 
 #: The state fields a row reads (:data:`warpratchet.state.STATE_FIELDS` less ``x``).
 ROW_FIELDS = ("winding", "q", "p0", "dx", "dp", "log_stretch")
@@ -397,6 +397,19 @@ def row_pass_available() -> bool:
             init_warp()
             _available = _gate_verdict()
         return _available
+
+
+def lyapunov_into(state: dict[str, np.ndarray], step: int, lo: int, hi: int, out: np.ndarray) -> np.ndarray:
+    """:func:`warpratchet.observables.lyapunov` of the points ``lo:hi`` of ``state`` into ``out``
+    (contiguous, shape ``(hi - lo,)``), bit for bit: in a kernel where its ``hypot`` and ``log`` are
+    NumPy's here (:func:`row_pass_available`), else, and for a stretch with a tangent that is not
+    finite, with NumPy's own functions."""
+    if row_pass_available():
+        x = {name: state[name][lo:hi] for name in ("dx", "dp", "log_stretch")}
+        _, ok = _libm.ftle_like_numpy(x["dx"], x["dp"], x["log_stretch"], float(step), out=out)
+        if ok.all():
+            return out
+    return _lyapunov_into(state, step, lo, hi, out)
 
 
 class RowPass:
