@@ -41,7 +41,7 @@ from .errors import (
 from .kernels import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from .limits import MAX_POINTS, MAX_STEP, available_memory, check_kernel_range, check_memory, format_bytes
 from .observables import (
-    KEPT_BYTES_PER_POINT,
+    KEPT_BYTES,
     SUMMARY_BYTES_PER_POINT,
     SUMMARY_CHUNK,
     TREE_LEAF,
@@ -351,7 +351,7 @@ class Ensemble:
     #: Why the state cannot be trusted (set when an error stopped a chunk partway), else None.
     undefined: str | None = None
     _run_pool: ThreadPoolExecutor | None = None
-    _running = False  # inside run(): summaries keep what the next row reuses (_keeps_chunks)
+    _running = False  # inside run(): summaries keep what the next row reuses (_keep_bytes)
 
     @property
     def run_pool(self) -> ThreadPoolExecutor | None:
@@ -471,7 +471,7 @@ class Ensemble:
         args = (views, self.step, threshold, ftle)
         # the per-point pass and the sums in kernels, NumPy's bits (the FTLE in the pass where its
         # functions are NumPy's here, else NumPy's own just before it: kernels.RowPass)
-        options: dict[str, Any] = {"buffers": self._row_buffers, "keep_chunks": self._keeps_chunks()}
+        options: dict[str, Any] = {"buffers": self._row_buffers, "keep_bytes": self._keep_bytes()}
         few = self.points < 4 * TREE_LEAF  # a few leaves: not worth the threads, nor the launches
         if not few:
             options["leaf_pass"] = functools.partial(kernels.RowPass, buffers=self._row_buffers)
@@ -494,21 +494,21 @@ class Ensemble:
         self._variance = (self.step, done[1])
         return done[0]
 
-    def _keeps_chunks(self) -> bool:
-        """Whether a summary keeps its chunks' values for its second pass instead of making them
-        again (``summarize_with_variance``'s ``keep_chunks``; in :attr:`_row_buffers`, from one
-        row of a run to the next): with more than one chunk, where half the memory available now
-        and what they hold already holds them. Where not, what they hold is let go."""
-        kept = summary_chunks(self.points)[-1][0] * KEPT_BYTES_PER_POINT  # all chunks but the last
-        spare = available_memory() if kept else None
+    def _keep_bytes(self) -> int:
+        """Bytes of its chunks' values a summary may keep for its second pass instead of making
+        them again (``summarize_with_variance``'s ``keep_bytes``; in :attr:`_row_buffers`, from one
+        row of a run to the next): :data:`~warpratchet.observables.KEPT_BYTES` with more than one
+        chunk, where half the memory available now and what they hold already holds that; else 0,
+        and what they hold is let go."""
+        spare = available_memory() if len(summary_chunks(self.points)) > 1 else None
         held = sum(values.nbytes for name, values in self._row_buffers.items() if name.startswith("kept"))
-        if spare is not None and kept <= (spare + held) // 2:
-            return True
+        if spare is not None and KEPT_BYTES <= (spare + held) // 2:
+            return KEPT_BYTES
         self._let_go_of_kept()
-        return False
+        return 0
 
     def _let_go_of_kept(self) -> None:
-        """Drop the chunks' values that summaries kept (:meth:`_keeps_chunks`)."""
+        """Drop the chunks' values that summaries kept (:meth:`_keep_bytes`)."""
         for name in [name for name in self._row_buffers if name.startswith("kept")]:
             del self._row_buffers[name]
 

@@ -290,6 +290,13 @@ def mean_stderr(values: np.ndarray) -> tuple[float, float]:
 SUMMARY_CHUNK = 1 << 20
 
 
+#: Most bytes of chunks' values that a history row's summary keeps for its second pass, where its
+#: caller has the memory (:func:`summarize_with_variance`'s ``keep_bytes``): the summary's own
+#: working memory (one chunk's, :data:`SUMMARY_BYTES_PER_POINT`) once more, so that a run's memory
+#: stays close to its state's at any size.
+KEPT_BYTES = SUMMARY_CHUNK * SUMMARY_BYTES_PER_POINT
+
+
 def summary_chunks(points: int) -> list[tuple[int, int]]:
     """The points ``(lo, hi)`` of each chunk of :data:`SUMMARY_CHUNK` that :func:`summarize` reduces
     at a time, in order (one chunk, empty, for no points)."""
@@ -386,10 +393,6 @@ def summarize(
             second.append(chunk_squares(ftle, acc, threshold, a_mean, ftle_mean))
     return summary_from_sums(step, threshold, n, first, second)
 
-
-#: Bytes a point that :func:`summarize_with_variance` keeps of a chunk with ``keep_chunks``: its gain
-#: and, at most (every point chaotic and ambiguous), its three gathered values.
-KEPT_BYTES_PER_POINT = 32
 
 #: Most values in a leaf of :func:`summarize_with_variance`'s summation trees: a leaf's temporaries
 #: (a few arrays of this length) stay in a core's cache. The sums over the gathered values take
@@ -493,7 +496,7 @@ def summarize_with_variance(
     leaf_pass: Callable | None = None,
     leaf_sums: Callable | None = None,
     buffers: dict | None = None,
-    keep_chunks: bool = False,
+    keep_bytes: int = 0,
 ) -> tuple[Summary, float] | None:
     """:func:`summarize` and the variance (ddof 1) of every point's :func:`momentum_gain` (a history
     row's ``var_dp_all``), bit for bit, in fewer passes and on ``pool``'s threads.
@@ -505,13 +508,12 @@ def summarize_with_variance(
     (:func:`tree_total`); the chunks' sums are then put together as :func:`summarize` and the
     history's variance put them together. So every number is theirs. With more than one chunk the
     per-point pass runs again for every chunk but the last (for the deviations from the means of
-    all chunks), so that the memory stays that of one chunk; ``keep_chunks`` keeps their gathered
-    values and gains instead (a copy in ``buffers``, under names that start with ``"kept"``: at most
-    :data:`KEPT_BYTES_PER_POINT` bytes a point of every chunk but the last), for a caller that has
-    the memory. ``batches``: how many pieces each pass of a chunk is cut into for the pool.
-    ``threshold``: the FTLE threshold itself (a rule's is
-    :func:`lyapunov_threshold`). Returns None where a value is not finite (:func:`summarize` says
-    which, in its error).
+    all chunks), so that the memory stays that of one chunk; of the chunks whose gathered values
+    and gains fit in ``keep_bytes`` bytes (taken in order, every chunk but the last), a copy is
+    kept instead, in ``buffers`` under names that start with ``"kept"``. ``batches``: how many
+    pieces each pass of a chunk is cut into for the pool. ``threshold``: the FTLE threshold itself
+    (a rule's is :func:`lyapunov_threshold`). Returns None where a value is not finite
+    (:func:`summarize` says which, in its error).
 
     The work may be done elsewhere, to the same bits: ``leaf_pass(state, ftle)``, given a chunk's
     arrays (views) and its FTLE (or None), returns the per-point pass of that chunk: for a group of
@@ -657,16 +659,20 @@ def summarize_with_variance(
 
     firsts = []
     last = len(bounds) - 1
+    kept, kept_bytes = set(), 0
     for index, (lo, hi) in enumerate(bounds):
         done = first_pass(lo, hi)
         if done is None:
             return None
-        if keep_chunks and index < last:  # the buffers are the next chunk's: keep a copy
-            sums, total, gathered, gain = done
+        sums, total, gathered, gain = done
+        size = sum(values.nbytes for values in (*gathered, gain))
+        if index < last and kept_bytes + size <= keep_bytes:  # the buffers are the next chunk's
             copies = [
                 _copy(values, buffers, f"kept {index} {i}") for i, values in enumerate((*gathered, gain))
             ]
             done = (sums, total, tuple(copies[:3]), copies[3])
+            kept.add(index)
+            kept_bytes += size
         firsts.append(done)
     first = [part[0] for part in firsts]
     means = summary_means(first) if needs_squares(first) else None
@@ -677,7 +683,7 @@ def summarize_with_variance(
     # order.
     seconds: list = [None] * len(bounds)
     for index in reversed(range(len(bounds))):
-        part = firsts[index] if keep_chunks or index == last else first_pass(*bounds[index])
+        part = firsts[index] if index in kept or index == last else first_pass(*bounds[index])
         seconds[index] = second_pass(part[2], part[3], means, mean)
     second, squares = [], 0.0
     for chunk_squares, gains in seconds:

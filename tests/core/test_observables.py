@@ -13,6 +13,7 @@ from warpratchet.ensemble import Ensemble
 from warpratchet.history import History
 from warpratchet.observables import (
     AMBIGUITY_FACTOR,
+    KEPT_BYTES,
     finite_time_acceleration,
     lyapunov,
     lyapunov_threshold,
@@ -221,9 +222,10 @@ def test_the_summary_with_variance_leaves_what_it_cannot_do_to_summarize(libm_ga
         summarize(state, 50)
 
 
-def test_a_summary_keeps_its_chunks_for_the_second_pass_where_the_memory_is_there(monkeypatch):
-    """``keep_chunks``: the per-point pass runs once per chunk, not again for every chunk but the
-    last. An ensemble keeps them where half the memory available holds them (never with one
+def test_a_summary_keeps_what_its_chunks_fit_in_for_the_second_pass(monkeypatch):
+    """``keep_bytes``: the per-point pass runs again for every chunk but the last, except those
+    whose values (the gathered FTLE and ``A_n``, the ambiguous ``A_n``, the gains) fit, in order.
+    An ensemble allows :data:`KEPT_BYTES` where half the memory available holds it (never with one
     chunk, nor where the memory is not known), and its summary is the same bits either way; a run
     keeps them from one row to the next and lets go at its end; a summary outside a run lets go
     at once."""
@@ -231,7 +233,13 @@ def test_a_summary_keeps_its_chunks_for_the_second_pass_where_the_memory_is_ther
 
     monkeypatch.setattr(observables, "SUMMARY_CHUNK", 10_000)  # 4 chunks
     state = _state(40_000, 300, seed=5)
-    for keep, passes in ((False, 7), (True, 4)):
+    ftle = lyapunov(state, 300).reshape(4, 10_000)
+    low, high = 0.05 / AMBIGUITY_FACTOR, 0.05 * AMBIGUITY_FACTOR
+    # each chunk's values in bytes: the gains, the chaotic FTLE and A_n, the ambiguous A_n
+    sizes = [
+        8 * (10_000 + 2 * np.count_nonzero(f > 0.05) + np.count_nonzero((f > low) & (f < high))) for f in ftle
+    ]
+    for keep, passes in ((0, 7), (min(sizes[:3]) - 1, 7), (sizes[0], 6), (sum(sizes[:3]), 4)):
         chunks = []
 
         def leaf_pass(x, ftle, chunks=chunks):
@@ -239,15 +247,14 @@ def test_a_summary_keeps_its_chunks_for_the_second_pass_where_the_memory_is_ther
             return kernels.RowPass(x, ftle)
 
         observables.summarize_with_variance(
-            state, 300, 0.05, leaf_pass=leaf_pass, leaf_sums=kernels.leaf_sums, keep_chunks=keep
+            state, 300, 0.05, leaf_pass=leaf_pass, leaf_sums=kernels.leaf_sums, keep_bytes=keep
         )
-        assert len(chunks) == passes
+        assert len(chunks) == passes, keep
     ens = Ensemble.from_state(MapParams(3.0, 0.1, 0.01), state, 300, threads=2)
     summaries = []
-    kept = 30_000 * observables.KEPT_BYTES_PER_POINT  # every chunk but the last
-    for spare, keeps in ((None, False), (2 * kept - 1, False), (2 * kept, True), (None, False)):
+    for spare, keep in ((None, 0), (2 * KEPT_BYTES - 1, 0), (2 * KEPT_BYTES, KEPT_BYTES), (None, 0)):
         monkeypatch.setattr(module, "available_memory", lambda spare=spare: spare)
-        assert ens._keeps_chunks() is keeps
+        assert ens._keep_bytes() == keep
         ens._summaries.clear()
         summaries.append(ens.summary(0.05, warn=False).as_dict())
     assert all(summary == summaries[0] for summary in summaries)  # (no value is NaN here)
@@ -260,7 +267,7 @@ def test_a_summary_keeps_its_chunks_for_the_second_pass_where_the_memory_is_ther
             super().after_chunk(ensemble, seconds)
             seen.append(any(name.startswith("kept") for name in ensemble._row_buffers))
             # what they hold counts as available: the next row reuses it
-            monkeypatch.setattr(module, "available_memory", lambda: 2 * kept - 1)
+            monkeypatch.setattr(module, "available_memory", lambda: 2 * KEPT_BYTES - 1)
 
     ens.run(20, observers=[Rows()])  # a run keeps them from row to row, and lets go at its end
     assert len(seen) >= 2 and all(seen)
@@ -269,7 +276,7 @@ def test_a_summary_keeps_its_chunks_for_the_second_pass_where_the_memory_is_ther
     ens.summary(0.04, warn=False)  # outside a run it keeps them for its own second pass only
     assert not any(name.startswith("kept") for name in ens._row_buffers)
     monkeypatch.setattr(observables, "SUMMARY_CHUNK", 40_000)  # one chunk: nothing to keep
-    assert not ens._keeps_chunks()
+    assert ens._keep_bytes() == 0
 
 
 @pytest.mark.parametrize(("chunk", "threads"), [(1000, 1), (1000, 2), (4096, 3), (39_999, 2)])
@@ -303,7 +310,7 @@ def test_past_one_chunk_the_summary_with_variance_adds_the_chunks_as_summarize_d
                     leaf_pass=None if leaf_pass is None else functools.partial(leaf_pass, buffers=buffers),
                     leaf_sums=leaf_sums,
                     buffers=buffers,
-                    keep_chunks=keep,
+                    keep_bytes=10**9 if keep else 0,
                 )
             for name, value in want.as_dict().items():
                 assert got.as_dict()[name] == value or _same_bits(got.as_dict()[name], value), name
