@@ -11,12 +11,14 @@ No timing assertions: rates are only checked to be positive and consistent with 
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import platform
 import shutil
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -309,3 +311,97 @@ def test_the_c_and_numba_contenders_take_another_force_bit_for_bit(
             )
     assert ran >= (1 if shutil.which("gcc") else 0)
     assert np.count_nonzero(expected["winding"] != start["winding"]) > 100
+
+
+def _benchmark_module(name: str, monkeypatch: pytest.MonkeyPatch) -> Any:
+    """``benchmarks/NAME.py`` imported (its folder on ``sys.path`` for its own imports)."""
+    folder = Path(__file__).resolve().parents[1] / "benchmarks"
+    monkeypatch.syspath_prepend(str(folder))
+    spec = importlib.util.spec_from_file_location(name, folder / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+# A function as objdump lists it: a loop (0x10-0x30, with the floor) inside a loop (0x08-0x40).
+_CODE = [
+    (0x00, "push", "%rbp"),
+    (0x04, "mov", "%rsp,%rbp"),
+    (0x08, "vaddpd", "%ymm0,%ymm1,%ymm1"),
+    (0x10, "vmulpd", "%ymm2,%ymm1,%ymm3"),
+    (0x18, "vroundpd", "$0x9,%ymm3,%ymm4"),
+    (0x20, "vsubpd", "%ymm4,%ymm3,%ymm3"),
+    (0x30, "jne", "10 <f+0x10>"),
+    (0x34, "vsubpd", "%ymm4,%ymm3,%ymm3"),
+    (0x40, "jne", "8 <f+0x8>"),
+    (0x44, "ret", ""),
+]
+
+
+def test_kernel_profile_finds_where_the_loader_put_the_code(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The load address is the page-aligned base that puts every sample inside the function on one
+    of its instructions; samples of other code are ignored, and a sample between two instructions
+    rules a base out."""
+    profile = _benchmark_module("kernel_profile", monkeypatch)
+    starts = [address for address, _, _ in _CODE]
+    base = 0x7F12_3456_7000
+    elsewhere = 0x7F12_3456_5123  # another module's code, more sampled than any instruction here
+    samples = {base + 0x18: 50, base + 0x20: 30, base + 0x34: 5, base: 1, elsewhere: 80}
+    assert profile.find_base(samples, starts, 0, 0x45) == base
+    assert profile.find_base({base + 0x18: 50, base + 0x19: 3}, starts, 0, 0x45) is None
+    assert profile.find_base({elsewhere: 80}, starts, 0, 0x45) is None
+
+
+def test_kernel_profile_counts_an_instruction_for_its_smallest_loop(monkeypatch: pytest.MonkeyPatch):
+    """Shares by loop add up to 1 with the share in no loop: the inner loop (the step loop: it has
+    the floor) owns its four instructions, the outer loop only its own three."""
+    profile = _benchmark_module("kernel_profile", monkeypatch)
+    loops, outside = profile.loop_shares(_CODE, {0x18: 50, 0x20: 30, 0x34: 10, 0x00: 10}, top=5)
+    assert [(row["first"], row["last"], row["own_instructions"]) for row in loops] == [
+        (0x10, 0x30, 4),
+        (0x08, 0x40, 3),
+    ]
+    assert [row["step_loop"] for row in loops] == [True, False]
+    assert [row["share"] for row in loops] == pytest.approx([0.8, 0.1])
+    assert outside == pytest.approx(0.1)
+    assert len(profile.loop_shares(_CODE, {0x18: 1}, top=1)[0]) == 1
+
+
+def _perf_samples() -> bool:
+    """Whether ``perf record`` can sample a process here (installed, allowed by
+    ``kernel.perf_event_paranoid``) and ``objdump`` is there."""
+    if shutil.which("perf") is None or shutil.which("objdump") is None:
+        return False
+    with tempfile.TemporaryDirectory() as tmp:
+        command = ["perf", "record", "-q", "-e", "cpu-clock", "-o", f"{tmp}/data", "--", "true"]
+        return subprocess.run(command, capture_output=True).returncode == 0
+
+
+@pytest.mark.skipif(not _perf_samples(), reason="perf cannot sample processes here (or objdump is missing)")
+def test_kernel_profile_benchmark_finds_each_kernels_step_loop():
+    """Smoke test of ``benchmarks/kernel_profile.py --quick``: each kernel's samples land on its own
+    code, and most of them in its step loop."""
+    report = quick_benchmark("kernel_profile.py")
+    assert [row["kernel"] for row in report["results"]] == ["map", "indicators", "transport"]
+    for row in report["results"]:
+        assert row["samples_in_function"] > 0 and row["function_share_of_launches"] > 0
+        assert row["base"] % 4096 == 0 and Path(row["object"]).exists()
+        loops = row["loops"]
+        assert loops[0]["step_loop"] and sum(loop["step_loop"] for loop in loops) == 1
+        assert sum(loop["share"] for loop in loops) + row["outside_loops"] <= 1 + 1e-12
+
+
+@pytest.mark.skipif(
+    shutil.which("gcc") is None or platform.machine() not in ("x86_64", "AMD64"),
+    reason="the FMA-bound probe needs gcc and an x86-64 CPU",
+)
+def test_core_sharing_benchmark_times_each_thread_on_one_and_two_threads():
+    """Smoke test of ``benchmarks/core_sharing.py --quick`` (structure; no timing assertions): one
+    rate for the single thread and two for the pair in every round, and their ratios."""
+    report = quick_benchmark("core_sharing.py")
+    assert report["rounds"] == 2 and len(report["one_thread"]) == 2
+    for single, pair, ratio in zip(
+        report["one_thread"], report["two_threads"], report["two_over_one"], strict=True
+    ):
+        assert single > 0 and len(pair) == 2 and all(rate > 0 for rate in pair)
+        assert ratio == pytest.approx([rate / single for rate in pair])
