@@ -378,17 +378,18 @@ def _perf_samples() -> bool:
 
 
 @pytest.mark.skipif(not _perf_samples(), reason="perf cannot sample processes here (or objdump is missing)")
-def test_kernel_profile_benchmark_finds_each_kernels_step_loop():
-    """Smoke test of ``benchmarks/kernel_profile.py --quick``: each kernel's samples land on its own
-    code, and most of them in its step loop."""
-    report = quick_benchmark("kernel_profile.py")
-    assert [row["kernel"] for row in report["results"]] == ["map", "indicators", "transport"]
-    for row in report["results"]:
-        assert row["samples_in_function"] > 0 and row["function_share_of_launches"] > 0
-        assert row["base"] % 4096 == 0 and Path(row["object"]).exists()
-        loops = row["loops"]
-        assert loops[0]["step_loop"] and sum(loop["step_loop"] for loop in loops) == 1
-        assert sum(loop["share"] for loop in loops) + row["outside_loops"] <= 1 + 1e-12
+def test_kernel_profile_benchmark_finds_the_kernels_step_loop():
+    """Smoke test of ``benchmarks/kernel_profile.py --quick`` on the transport kernel (the one with
+    the most loops): its samples land on its own code, and most of them in its step loop."""
+    proc = benchmark("kernel_profile.py", "--quick", "--json", "--kernel", "transport")
+    assert proc.returncode == 0, proc.stderr
+    (row,) = json.loads(proc.stdout)["results"]
+    assert row["kernel"] == "transport"
+    assert row["samples_in_function"] > 0 and row["function_share_of_launches"] > 0
+    assert row["base"] % 4096 == 0 and Path(row["object"]).exists()
+    loops = row["loops"]
+    assert loops[0]["step_loop"] and sum(loop["step_loop"] for loop in loops) == 1
+    assert sum(loop["share"] for loop in loops) + row["outside_loops"] <= 1 + 1e-12
 
 
 @pytest.mark.skipif(
