@@ -11,9 +11,10 @@ base at which the samples fall on instruction boundaries of the module's object 
 kernel's function:
 
 * its share of the CPU time of the launches (the rest is Warp's launch and the C library's calls);
-* each loop (a backward jump and its target), innermost first: its instructions, its share of the
-  function's samples and the nanoseconds per point-step that share stands for; the step loop is
-  the innermost loop with the floor instruction, as in ``instruction_mix.py``.
+* each loop (a backward jump and its target), the largest share first: its own instructions (not
+  those of the loops inside it), their share of the function's samples and the nanoseconds per
+  point-step that share stands for; the step loop is the smallest loop with the floor
+  instruction, as in ``instruction_mix.py``.
 
 Samples land on the instruction after the one that waited (skid), so read loops, not single
 instructions.
@@ -24,8 +25,8 @@ Usage::
     python benchmarks/kernel_profile.py --kernel transport --json
     python benchmarks/kernel_profile.py --quick --json         # smoke test: 20 000 points x 400 steps
 
-Needs ``perf`` (``kernel.perf_event_paranoid`` at most 2) and ``objdump``; exits 2 with the reason
-where either is missing.
+Needs ``perf`` (``kernel.perf_event_paranoid`` at most 2) and ``objdump``: exits 2 where either is
+missing, 1 with perf's message where it cannot sample.
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ from instruction_mix import FLOOR, _disassemble
 
 KERNEL_NAMES = ("map", "indicators", "transport")
 PAGE = 4096
-# perf's sampling rate (Hz of CPU time): ~1,000 samples per CPU second of the launches at least.
+# perf's sampling rate: samples per CPU second of the launches.
 FREQUENCY = 4999
 
 
