@@ -14,6 +14,7 @@ import warp as wp
 
 from warpratchet import kernels, reference
 from warpratchet.ensemble import Ensemble
+from warpratchet.force import Force
 from warpratchet.kernels._transport import BINS, CARRY_FIELDS, HISTOGRAMS, advance_map_transport
 from warpratchet.params import MapParams
 from warpratchet.transport import Histograms, TransportEnsemble, bin_of, edges, open_runs
@@ -26,16 +27,20 @@ CASES = [
     MapParams(3.0, 0.1, 0.01),  # the README's example: returns within 3 steps (Eq. Cs)
     MapParams(3.618033988749895, 0.05, 0.02),  # Fig. 1(b)
     MapParams(2.99, 0.25, 0.07),  # Fig. 9's path: returns of 256 steps and more
-    MapParams(3.242, 0.088, 0.013),  # flights of 8-15 steps
+    MapParams(3.242, 0.088, 0.013),  # returns of 8-15 steps
     MapParams(0.5, 0.4, 0.3),  # weak kicks: long gaps, few flights
     MapParams(3.0, 1e-9, 1e-9),  # elliptic-sawtooth limit (slopes ~5e8)
+    # a plateau where K f = 1: flights of gain 1 of every length from 1 to over 128 steps, so runs
+    # of every length inside the decoder's blocks of 8 rows and across them
+    MapParams(2.0, table=Force.from_knots([0, 0.125, 0.375, 0.5], [0, 0.5, 0.5, -0.6])),
 ]
 
 
 def _start(p: MapParams, n: int = 1003, seed: int = 3) -> tuple[dict, np.ndarray]:
     rng = np.random.default_rng(seed)
     x = rng.random(n)
-    x[:4] = [0.0, p.b1, 1.0 - p.b2, 0.5]  # on the kinks and the strip's edges
+    kinks = list(p.table.knots) if p.b1 is None else [0.0, p.b1, 1.0 - p.b2]
+    x[: len(kinks) + 1] = [*kinks, 0.5]  # on the kinks and the strip's edges
     q = rng.random(n) - 3.0
     return Ensemble(p, x, q, threads=1).state(), x
 
@@ -62,13 +67,17 @@ def test_the_pure_module_names_the_kernels_bins_and_fields():
     assert (pure.BINS, pure.HISTOGRAMS, pure.CARRY_FIELDS) == (BINS, HISTOGRAMS, CARRY_FIELDS)
 
 
-@pytest.mark.parametrize("p", CASES, ids=lambda p: f"K{p.K:.4g}-b{p.b1:g}-{p.b2:g}")
+@pytest.mark.parametrize(
+    "p", CASES, ids=lambda p: f"K{p.K:.4g}-" + ("plateau" if p.b1 is None else f"b{p.b1:g}-{p.b2:g}")
+)
 def test_both_step_bodies_count_exactly_what_the_numpy_twin_counts(p):
     """1003 points (lanes past the end) x 1500 steps from global step 5, in odd launches."""
     state, _ = _start(p)
     carry = twin.initial_carry(p, state["x"], 5)
     expected_state, expected_carry, expected = twin.advance(p, state, carry, 1500, step0=5)
     assert expected.sum() > 1000  # events happened
+    if p.b1 is None:  # the plateau's flights of 8 steps and more (bins 3 and up) happened
+        assert expected[1, 3:].sum() > 100
     # block_rows=1: every row through the row loop, the path of an AVX-512 CPU without GFNI
     runs = [("cpu", [1500], 8), ("cpu", [3, 97, 1, 8, 600, 791], 8), ("cpu", [1500], 1)]
     runs += [("cpu", [3, 97, 1, 8, 600, 791], 1), ("portable", [700, 800], 8)]
