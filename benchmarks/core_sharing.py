@@ -96,6 +96,12 @@ def main(argv: list[str] | None = None) -> int:
         for _ in range(rounds):
             single = rates(lib, iterations, 1)[0]
             pair = rates(lib, iterations, 2)
+            if min(pair) <= 0.0:  # a rate left unwritten: OpenMP gave the pair one thread
+                print(
+                    "core_sharing.py: error: OpenMP ran fewer than 2 threads (OMP_THREAD_LIMIT?)",
+                    file=sys.stderr,
+                )
+                return 2
             one.append(single)
             two.append(pair)
             ratios.append([rate / single for rate in pair])
