@@ -64,14 +64,21 @@ def _kind(mnemonic: str, operands: str) -> str:
     return "other"
 
 
-def step_loop(code: list[tuple[int, str, str]]) -> list[tuple[str, str]] | None:
-    """``(mnemonic, operands)`` of the innermost loop that contains a floor instruction (None if
-    there is none)."""
-    loops = []
+def loops_of(code: list[tuple[int, str, str]]) -> list[tuple[int, int]]:
+    """``(first, last)`` object addresses of each loop (a backward jump and its target) of a
+    function, innermost (shortest) first; nested loops share instructions."""
+    found = set()
     for address, mnemonic, operands in code:
         target = re.match(r"([0-9a-f]+)", operands)
         if mnemonic.startswith("j") and target and int(target.group(1), 16) <= address:
-            loops.append((int(target.group(1), 16), address))
+            found.add((int(target.group(1), 16), address))
+    return sorted(found, key=lambda span: (span[1] - span[0], span[0]))
+
+
+def step_loop(code: list[tuple[int, str, str]]) -> list[tuple[str, str]] | None:
+    """``(mnemonic, operands)`` of the innermost loop that contains a floor instruction (None if
+    there is none)."""
+    loops = loops_of(code)
     with_floor = [
         (hi - lo, lo, hi) for lo, hi in loops if any(lo <= a <= hi and FLOOR.search(m) for a, m, _ in code)
     ]
@@ -95,14 +102,18 @@ def step_loop_mix(code: list[tuple[int, str, str]]) -> dict[str, Any] | None:
     }
 
 
-def _warpratchet_object() -> tuple[Path, int]:
+def warpratchet_object(kernel: Any = None) -> tuple[Path, int]:
+    """The object file of the CPU module of ``kernel`` (an ``AdvanceKernel``; default
+    ``advance_map``, whose module holds the indicators too) in Warp's kernel cache, loaded (or
+    compiled) first, and the points one pass of its step loop advances."""
     import warp as wp
 
     from warpratchet import kernels
 
+    kernel = kernels.advance_map if kernel is None else kernel
     kernels.init_warp()
-    kernels.advance_map.load("cpu")
-    module = kernels.advance_map.cpu.module
+    kernel.load("cpu")
+    module = kernel.cpu.module
     (block_dim,) = {block_dim for _, block_dim in module.execs}  # the variant loaded on the CPU
     build = Path(wp.config.kernel_cache_dir) / module.get_module_identifier(block_dim)
     return max(build.glob("*.o"), key=lambda p: p.stat().st_mtime), kernels.INTERLEAVE
@@ -119,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     if shutil.which("objdump") is None:
         print("instruction_mix.py: objdump not found (binutils)", file=sys.stderr)
         return 2
-    obj, points = (args.object, args.points or 1) if args.object else _warpratchet_object()
+    obj, points = (args.object, args.points or 1) if args.object else warpratchet_object()
     prefixes = args.function or ["advance_map_", "advance_map_indicators_"]
     functions = _disassemble(obj)
     rows = {}

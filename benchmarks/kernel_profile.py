@@ -45,7 +45,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from instruction_mix import FLOOR, _disassemble
+from instruction_mix import FLOOR, _disassemble, loops_of, warpratchet_object
 
 KERNEL_NAMES = ("map", "indicators", "transport")
 PAGE = 4096
@@ -58,7 +58,6 @@ def _child(kernel: str, points: int, steps: int, launch: int, out: Path, control
     """Advance the kernel's ensemble ``steps`` in launches of ``launch`` on one thread, perf's events
     enabled only then (``control``: its control and acknowledgement FIFOs); write the object file,
     the kernel, the launches' CPU seconds and point-steps to ``out`` (JSON)."""
-    import warp as wp
     from kernel_ceilings import KERNELS, _ensemble
 
     from warpratchet import kernels
@@ -79,16 +78,13 @@ def _child(kernel: str, points: int, steps: int, launch: int, out: Path, control
         done += todo
     cpu = time.process_time() - cpu
     tell_perf("disable")
-    module = ens._kernel.cpu.module
-    (block_dim,) = {block_dim for _, block_dim in module.execs}
-    build = Path(wp.config.kernel_cache_dir) / module.get_module_identifier(block_dim)
-    obj = max(build.glob("*.o"), key=lambda p: p.stat().st_mtime)
+    obj, lanes = warpratchet_object(ens._kernel)
     report = {
         "object": str(obj),
         "kernel_key": ens._kernel.cpu.key,
         "cpu_seconds": cpu,
         "point_steps": points * steps,
-        "lanes": kernels.INTERLEAVE,
+        "lanes": lanes,
         "isa": kernels.CPU_ISA,
         "pid": os.getpid(),
     }
@@ -117,17 +113,6 @@ def find_base(samples: dict[int, int], starts: list[int], lo: int, hi: int) -> i
         if best is not None:
             return best
     return None
-
-
-def loops_of(code: list[tuple[int, str, str]]) -> list[tuple[int, int]]:
-    """``(first, last)`` object addresses of each loop (a backward jump and its target) of a
-    function, innermost (shortest) first; nested loops share instructions."""
-    found = set()
-    for address, mnemonic, operands in code:
-        target = re.match(r"([0-9a-f]+)", operands)
-        if mnemonic.startswith("j") and target and int(target.group(1), 16) <= address:
-            found.add((int(target.group(1), 16), address))
-    return sorted(found, key=lambda span: (span[1] - span[0], span[0]))
 
 
 def loop_shares(code: list[tuple[int, str, str]], at: dict[int, int], top: int) -> tuple[list[dict], float]:
