@@ -252,6 +252,31 @@ def test_launch_cost_benchmark_splits_a_launch_into_fixed_and_per_step_parts():
         assert parts == pytest.approx(row["launch_1_step_s"])
 
 
+def test_stop_cost_benchmark_stops_where_the_run_stops():
+    """Smoke test of ``benchmarks/stop_cost.py --quick`` (structure; no timing assertions): one row
+    per thread count, each stopped run cut where a History stops a run of 2 000 points x 3 000
+    steps (its rows and, for so small an ensemble, its block steps; no regular chunk end before the
+    target), and no lag or spread between shards on one thread."""
+    from warpratchet.ensemble import default_threads
+    from warpratchet.history import BLOCK_POINTS, BLOCKS, block_steps, copies_blocks, history_steps
+
+    report = quick_benchmark("stop_cost.py")
+    points, steps = report["points"], report["steps"]
+    assert (points, steps) == (2_000, 3_000)
+    assert not copies_blocks(points, min(points, BLOCK_POINTS), steps, BLOCKS)  # the run stops at blocks
+    stops = set(history_steps(0, steps)) | set(block_steps(0, steps))
+    assert [row["threads"] for row in report["rows"]] == sorted({1, default_threads()})
+    for row in report["rows"]:
+        assert row["chunks"] == len(stops)
+        assert row["one_chunk_s"] > 0 and row["stopped_s"] > 0 and row["shards_vs_one"] > 0
+        assert row["ratio"]["min"] <= row["ratio"]["median"] <= row["ratio"]["max"]
+        assert row["lag_first_us"] >= 0 and row["tail_us"] >= 0
+        if row["threads"] == 1:
+            assert row["lag_rest_us"] == row["spread_us"] == 0
+        else:
+            assert row["lag_rest_us"] > 0 and row["spread_us"] >= 0
+
+
 def test_fig7_tenfold_benchmark_projects_the_figure_from_its_rate():
     """Smoke test of ``benchmarks/fig7_tenfold.py --quick``: 33 x 10^5 x 1.2e6 point-steps over the
     measured rate."""
