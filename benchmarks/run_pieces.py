@@ -4,11 +4,13 @@ Each round runs ``warpratchet run --K 3 --b1 0.1 --b2 0.01 --points N --steps S 
 --json --quiet`` in this process, then the kernel alone (the same sampling and one
 ``Ensemble.run(S, chunk_steps=S)``), and times, inside both:
 
-* **launches**: each chunk's launches (``Ensemble._advance``), against the kernel alone's one;
-  with a pool, per launch, how much later the pool's shards start than the calling thread's
-  (``start lag``) and how much longer the slowest shard runs than the fastest (``shard lag``:
-  what the barrier after the launch waits for);
-* **rows**: each history row's summary (``Ensemble.summary``), their count and median;
+* **launches**: each chunk's launches (``Ensemble._advance``, or ``Ensemble._advance_copying``
+  where the shards go through the chunk's stops on their own: then one entry for the chunk),
+  against the kernel alone's one; with a pool, per entry, how much later the last shard starts
+  than the first (``start lag``) and how much longer the slowest shard runs than the
+  fastest (``shard lag``: what the barrier at the end waits for);
+* **rows**: each history row's summary (``Ensemble.summary``), their count and median (a row at
+  a copy of the state is made while the shards run on);
 * **blocks**: the block records made from the history's own copy of its subsample.
 
 Only the ensemble of the run is counted under launches (not the block records' copy). The numbers
@@ -51,30 +53,27 @@ class Probe:
     @contextlib.contextmanager
     def installed(self) -> Iterator[Probe]:
         probe = self
-        launch, advance = Ensemble._launch, Ensemble._advance
+        launch, advance, copying = Ensemble._launch, Ensemble._advance, Ensemble._advance_copying
         summary, record_block = Ensemble.summary, History._record_block
 
         def timed_launch(self, lo, hi, step0, steps):
             start = time.perf_counter()
             launch(self, lo, hi, step0, steps)
-            probe._shards.append((start, time.perf_counter()))
+            probe._shards.append((lo, start, time.perf_counter()))
 
         def timed_advance(self, steps, pool):
             probe._shards = []
             start = time.perf_counter()
             advance(self, steps, pool)
-            seconds = time.perf_counter() - start
             if not probe._in_blocks:
-                shards = probe._shards
-                starts, durations = [s for s, _ in shards], [e - s for s, e in shards]
-                probe.launches.append(
-                    {
-                        "steps": steps,
-                        "seconds": seconds,
-                        "start_lag": max(starts) - min(starts) if len(shards) > 1 else 0.0,
-                        "shard_lag": max(durations) - min(durations) if len(shards) > 1 else 0.0,
-                    }
-                )
+                probe._chunk(steps, time.perf_counter() - start)
+
+        def timed_advance_copying(self, stops, end, pool, at_copy):
+            # a chunk whose shards go through its stops on their own: one launch per shard and stop
+            probe._shards, steps = [], end - self.step
+            start = time.perf_counter()
+            copying(self, stops, end, pool, at_copy)
+            probe._chunk(steps, time.perf_counter() - start)
 
         def timed_summary(self, *args, **kwargs):
             start = time.perf_counter()
@@ -92,12 +91,31 @@ class Probe:
                 probe.blocks.append(time.perf_counter() - start)
 
         Ensemble._launch, Ensemble._advance = timed_launch, timed_advance
+        Ensemble._advance_copying = timed_advance_copying
         Ensemble.summary, History._record_block = timed_summary, timed_record_block
         try:
             yield self
         finally:
-            Ensemble._launch, Ensemble._advance = launch, advance
+            Ensemble._launch, Ensemble._advance, Ensemble._advance_copying = launch, advance, copying
             Ensemble.summary, History._record_block = summary, record_block
+
+    def _chunk(self, steps: int, seconds: float) -> None:
+        """Record a chunk of ``steps`` that took ``seconds``: each shard's first start and its time
+        from there to its last launch's end (the shard's launches are every stop's in the chunk)."""
+        shards: dict[int, list[float]] = {}
+        for lo, start, end in self._shards:
+            first, last = shards.setdefault(lo, [start, end])
+            shards[lo] = [min(first, start), max(last, end)]
+        starts, durations = [s for s, _ in shards.values()], [e - s for s, e in shards.values()]
+        several = len(shards) > 1
+        self.launches.append(
+            {
+                "steps": steps,
+                "seconds": seconds,
+                "start_lag": max(starts) - min(starts) if several else 0.0,
+                "shard_lag": max(durations) - min(durations) if several else 0.0,
+            }
+        )
 
 
 def measure(points: int, steps: int, threads: int) -> dict:

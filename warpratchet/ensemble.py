@@ -21,7 +21,9 @@ from __future__ import annotations
 import functools
 import operator
 import os
-from collections.abc import Iterable, Mapping, Sequence
+import threading
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor, wait
 from typing import Any
 
@@ -84,6 +86,9 @@ __all__ = [
 
 #: The state arrays the kernels take, in their argument order (p0 is not needed to advance).
 _KERNEL_FIELDS = ("x", "q", "winding", "dx", "dp", "log_stretch")
+#: Most bytes of state copies that a run keeps for the stops inside one chunk
+#: (:meth:`Ensemble._advance_copying`; at most half the memory available).
+COPY_BYTES = 64 << 20
 # The initial-condition samplers (``SAMPLERS``, ``sample_*``, ``grid_nodes``) live in
 # :mod:`warpratchet.sampling`; they are re-exported here, where callers have always found them.
 
@@ -348,6 +353,111 @@ class Ensemble:
             self.step += todo
             steps -= todo
 
+    def _copies_that_fit(self) -> int:
+        """How many stops :meth:`_advance_copying` may carry the shards through at once: the copies
+        of the state that fit in :data:`COPY_BYTES` (and half the memory available); 0 for an
+        ensemble whose shards carry more than the state (a kernel variant's arrays, its own launch)."""
+        # the copies' shards bypass _advance and _launch: not where a class or an object has its own
+        own = (getattr(self._advance, "__func__", None), getattr(self._launch, "__func__", None))
+        if own != (Ensemble._advance, Ensemble._launch) or self._extra_arrays():
+            return 0
+        spare = available_memory()
+        budget = COPY_BYTES if spare is None else min(COPY_BYTES, spare // 2)
+        return budget // (8 * len(_KERNEL_FIELDS) * self.points)
+
+    def _advance_copying(
+        self,
+        stops: Sequence[int],
+        end: int,
+        pool: ThreadPoolExecutor,
+        at_copy: Callable[[int, Ensemble, float], None],
+    ) -> None:
+        """Advance to global step ``end`` on ``pool``'s threads, each thread carrying its shard
+        through ``stops`` (increasing, before ``end``) without waiting for the others, and copying
+        its part of the state at each; meanwhile, on this thread, ``at_copy(k, copy, at)`` for
+        each stop in order as soon as every shard has copied ``stops[k]`` (``copy``: the ensemble at
+        that step, read-only; ``at``: ``time.perf_counter()`` then).
+
+        So a run's threads meet once, at ``end``, instead of at every stop, and the observers of
+        the stops work while the shards go on: the copies are the state's bits, so whatever they
+        compute is what they would have computed at a stop. A shard's error is raised once every
+        shard has stopped, with ``step`` unchanged; an error of ``at_copy`` once every shard is at
+        ``end``, with ``step = end``.
+        """
+        self._summaries = {}  # the state moves on
+        self._variance = None
+        views = self.views()
+        copies = self._copy_buffers(len(stops))
+        shards = self._shards()
+        copied = [0] * len(shards)  # stops each shard has copied
+        failed = []
+        ready = threading.Condition()
+
+        def carry(index: int, lo: int, hi: int) -> None:
+            step = self.step
+            try:
+                for k, target in enumerate([*stops, end]):
+                    while step < target:  # a launch's loop counter is 32-bit (MAX_LAUNCH_STEPS)
+                        todo = min(target - step, kernels.MAX_LAUNCH_STEPS)
+                        self._launch(lo, hi, step, todo)
+                        step += todo
+                    if k < len(stops):
+                        for name, copy in copies[k].items():
+                            copy[lo:hi] = views[name][lo:hi]
+                        with ready:
+                            copied[index] = k + 1
+                            ready.notify_all()
+            except BaseException:
+                with ready:
+                    failed.append(index)
+                    ready.notify_all()
+                raise
+
+        futures = [pool.submit(carry, index, lo, hi) for index, (lo, hi) in enumerate(shards)]
+        error = None
+        try:
+            for k, stop in enumerate(stops):
+                with ready:
+                    ready.wait_for(lambda k=k: failed or min(copied) > k)
+                if failed:
+                    break
+                at_copy(k, self._state_copy(stop, copies[k], views["p0"]), time.perf_counter())
+        except BaseException as exc:  # noqa: BLE001 - raised once no shard writes the arrays
+            error = exc
+        wait(futures)
+        for future in futures:
+            future.result()
+        self.step = end
+        if error is not None:
+            raise error
+
+    def _copy_buffers(self, count: int) -> list[dict[str, np.ndarray]]:
+        """``count`` sets of arrays for copies of the state (less ``p0``, which a run never
+        changes), kept from one chunk of a run to the next (fresh pages cost more than the copy)."""
+        kept = self.__dict__.setdefault("_copies", [])
+        while len(kept) < count:
+            kept.append(
+                {
+                    name: np.empty(self.points, dtype=np.int64 if name == "winding" else np.float64)
+                    for name in _KERNEL_FIELDS
+                }
+            )
+        return kept[:count]
+
+    def _state_copy(self, step: int, arrays: Mapping[str, np.ndarray], p0: np.ndarray) -> Ensemble:
+        """This ensemble as it was at ``step``, from copies of its state: a :class:`_StateCopy`."""
+        copy = _StateCopy.__new__(_StateCopy)
+        copy.__dict__.update(self.__dict__)
+        views = {"p0": p0}
+        for name, values in arrays.items():
+            views[name] = values.view()
+            views[name].flags.writeable = False
+        copy.step = step
+        copy._views, copy._views_live = views, True
+        copy._summaries, copy._variance = {}, None
+        copy._run_pool, copy.threads = None, 1  # its summary on the observer's thread: the run's are busy
+        return copy
+
     #: Why the state cannot be trusted (set when an error stopped a chunk partway), else None.
     undefined: str | None = None
     _run_pool: ThreadPoolExecutor | None = None
@@ -435,6 +545,7 @@ class Ensemble:
             self._run_pool = None
             self._running = False
             self._let_go_of_kept()  # a run's memory, not the ensemble's
+            self.__dict__.pop("_copies", None)
             if sink is not None:
                 with deferred_interrupts():  # a second Ctrl-C does not cut the archive's close
                     sink.close()
@@ -548,3 +659,15 @@ class Ensemble:
             f"Ensemble(K={p.K!r}, {force}, points={self.points}, step={self.step}, "
             f"device={self.device!r}, threads={self.threads})"
         )
+
+
+class _StateCopy(Ensemble):
+    """An ensemble as it was at a stop of a run that has gone on (:meth:`Ensemble._advance_copying`):
+    its state is read-only copies, so it gives the summaries and views of that step and cannot be
+    run."""
+
+    def run(self, *args: Any, **kwargs: Any) -> Ensemble:
+        raise ValueError(f"this is a copy of the state at step {self.step} during a run; it cannot be run")
+
+    def _advance(self, steps: int, pool: ThreadPoolExecutor | None) -> None:
+        raise ValueError(f"this is a copy of the state at step {self.step} during a run; it cannot be run")

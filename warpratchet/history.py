@@ -345,6 +345,10 @@ class History(Observer):
         return self.block_indices
 
     # -- the observer -------------------------------------------------------------------------------
+    #: Its stops depend on the step alone and it only reads the ensemble there, so a run on several
+    #: threads may give it copies of the state at its steps (:class:`~warpratchet.runloop.Observer`).
+    takes_state_copies = True
+
     def begin(self, ensemble: Any, target_step: int) -> None:
         # Idempotent for one run (an archive sink may begin its history itself).
         self.target = int(target_step)

@@ -29,6 +29,18 @@ still gets exactly one row per regular chunk (results never depend on chunking a
 at the step where the run stops, which every observer sees. The
 ``seconds`` passed to ``after_chunk`` are the kernel seconds since *that* observer was last
 called.
+
+Stops without a meeting. On more than one CPU thread every stop is a barrier: the next launch
+waits for the slowest shard, and the threads sleep while the observers work (on a small ensemble
+run long, the README's 10^4 points x 120 000 steps, a tenth of the run on two threads:
+benchmarks/README.md, "stop_cost.py"). Where every observer that asks for stops takes copies
+(``Observer.takes_state_copies``: a :class:`~warpratchet.history.History` does), each thread
+instead carries its shard through the chunk's stops on its own, copying its part of the state at
+each, and the observers get, at their stops, a read-only copy of the ensemble at that step
+(``Ensemble._advance_copying``), while the threads go on: the threads meet once a chunk. The copies
+are the state's bits, so every number is the one a stop would give. At most
+:data:`~warpratchet.ensemble.COPY_BYTES` of copies are held; past that the chunk ends at the next
+stop as above.
 """
 
 from __future__ import annotations
@@ -85,6 +97,12 @@ class Observer:
     An observer may also define ``next_stop(step) -> int | None``, the next step after ``step``
     at which it wants ``after_chunk`` called (see the module docstring).
     """
+
+    #: True for an observer whose ``next_stop`` depends on the step alone and whose ``after_chunk``
+    #: at those stops only reads the ensemble (its state, views, summaries): the run may then hand
+    #: it, there, a read-only copy of the ensemble at that step while its threads go on (see the
+    #: module docstring).
+    takes_state_copies = False
 
     def begin(self, ensemble: Any, target_step: int) -> None:
         """Called once before the first chunk; the run will stop at ``target_step``."""
@@ -193,6 +211,29 @@ def _next_stops(stoppers: Sequence[Any], step: int) -> list[int | None]:
     return stops
 
 
+def _plan(stoppers: Sequence[Any], step: int, chunk_end: int) -> list[tuple[int, list[Any]]]:
+    """The stops after ``step`` and before ``chunk_end`` that the ``stoppers`` ask for, in order,
+    each with the observers that asked for it."""
+    plan = []
+    while True:
+        stops = _next_stops(stoppers, step)
+        stop = min([chunk_end] + [s for s in stops if s is not None])
+        if stop == chunk_end:
+            return plan
+        plan.append((stop, [obs for obs, s in zip(stoppers, stops, strict=True) if s == stop]))
+        step = stop
+
+
+def _copied(ensemble: Any, stoppers: Sequence[Any], plan: list, pool: Any) -> list[tuple[int, list[Any]]]:
+    """The first stops of ``plan`` that the run's threads may go through without meeting, their
+    observers given copies of the state there (``Ensemble._advance_copying``): on more than one
+    CPU thread, where every observer that stops the run takes copies (:class:`Observer`) and as
+    many as the ensemble's copies hold; else none."""
+    if pool is None or not plan or not all(getattr(obs, "takes_state_copies", False) for obs in stoppers):
+        return []
+    return plan[: getattr(ensemble, "_copies_that_fit", lambda: 0)()]
+
+
 def run_chunks(
     ensemble: Any,
     target: int,
@@ -229,11 +270,25 @@ def run_chunks(
                 # Chunk ends sit at global multiples of chunk_steps, so a run resumed from any
                 # step reports (and archives) at the same steps as an uninterrupted one.
                 chunk_end = min(step + chunk_steps - step % chunk_steps, target)
-                stops = _next_stops(stoppers, step)
-                stop = min([chunk_end] + [s for s in stops if s is not None])
-                start = time.perf_counter()
+                plan = _plan(stoppers, step, chunk_end)
+                copied = _copied(ensemble, stoppers, plan, pool)
+                stop, askers = plan[len(copied)] if len(copied) < len(plan) else (chunk_end, None)
+                mark = time.perf_counter()
+
+                def at_copy(k: int, copy: Any, at: float, copied: list = copied) -> None:
+                    nonlocal mark
+                    for key in unseen:
+                        unseen[key] += at - mark
+                    mark = at
+                    for obs in copied[k][1]:
+                        elapsed, unseen[id(obs)] = unseen[id(obs)], 0.0
+                        obs.after_chunk(copy, elapsed)
+
                 try:
-                    ensemble._advance(stop - step, pool)
+                    if copied:
+                        ensemble._advance_copying([s for s, _ in copied], stop, pool, at_copy)
+                    else:
+                        ensemble._advance(stop - step, pool)
                 except BaseException as exc:
                     # _advance returns or raises only after every shard has stopped writing.
                     if ensemble.step == step:
@@ -242,13 +297,10 @@ def run_chunks(
                             f"({type(exc).__name__}: {exc}); points may be at different steps"
                         )
                     raise
-                seconds = time.perf_counter() - start
+                seconds = time.perf_counter() - mark
                 for key in unseen:
                     unseen[key] += seconds
-                if stop == chunk_end:
-                    called = list(observers)
-                else:
-                    called = [obs for obs, s in zip(stoppers, stops, strict=True) if s == stop]
+                called = list(observers) if askers is None else askers
                 for obs in called:
                     elapsed, unseen[id(obs)] = unseen[id(obs)], 0.0
                     obs.after_chunk(ensemble, elapsed)

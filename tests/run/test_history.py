@@ -356,7 +356,9 @@ def test_a_runs_report_and_history_equal_those_of_summarize_and_the_reference_va
 
 def test_one_pool_serves_a_runs_launches_and_its_rows_and_a_row_outside_a_run_has_its_own(monkeypatch):
     """The history rows of a run on 2 threads are summarised on the pool of its launches (the only
-    pool the run makes); a summary outside a run makes a pool of its own. Bits as ``summarize``'s."""
+    pool the run makes) where the threads meet (the chunk's end), and on the observer's thread where
+    they go on (copies of the state at the rows inside the chunk); a summary outside a run makes a
+    pool of its own. Bits as ``summarize``'s."""
     import warpratchet.ensemble as module
 
     monkeypatch.setattr(module, "TREE_LEAF", 128)  # many leaves: the rows go on the threads
@@ -377,7 +379,7 @@ def test_one_pool_serves_a_runs_launches_and_its_rows_and_a_row_outside_a_run_ha
     history = History()
     ens.run(2500, [history])
     assert len(made) == 1 and len(used) == len(history.rows["step"]) > 10
-    assert all(p is made[0] for p in used)
+    assert used[-1] is made[0] and all(p is None for p in used[:-1])  # one chunk: 2500 steps
     assert ens.summary(warn=False) == summarize(ens.state(), ens.step)  # the last row's, cached
     outside = ens.summary(threshold=0.05, warn=False)  # a new threshold: a new summary, no run
     assert len(made) == 2 and used[-1] is made[1] and made[1] is not made[0]
