@@ -1,15 +1,23 @@
 """What a run's stops cost on its threads, with no observer work at all.
 
 A run stops at every step an observer asks to see (a history's rows and, for a small ensemble,
-its block steps): every thread's launch ends there and the next chunk starts only when the last
-shard is done. This benchmark runs the stops of ``warpratchet run --points N --steps S`` (its
+its block steps). This benchmark runs the stops of ``warpratchet run --points N --steps S`` (its
 History's, through the History's own ``next_stop``, and the run's regular chunk ends) with an
-observer that does nothing at them, against the same ensemble advanced in one chunk, alternately
-(the order flips every round), on each thread count. The difference is what the stops themselves
-cost: launches, the hand-over between threads, and shards that end at different times.
+observer that does nothing at them, against the same ensemble advanced in one chunk, in three
+ways, alternately (the order turns every round), on each thread count:
+
+* **one chunk**: no stop;
+* **stops**: the threads meet at every stop (every thread's launch ends there and the next starts
+  when the last shard is done), as for an observer that needs the live ensemble;
+* **copies**: the threads go through the chunk's stops on their own and copy the state at each
+  (``Observer.takes_state_copies``, as a History's stops are run), meeting at the chunk's end.
+
+The differences are what the stops themselves cost: launches, the hand-over between threads,
+shards that end at different times, and the copies.
 
 For each stopped run it also times every shard's launch (``perf_counter`` around each thread's
-launch, from an :class:`~warpratchet.ensemble.Ensemble` subclass) and prints, per stop:
+launch, from an :class:`~warpratchet.ensemble.Ensemble` subclass, which the run always makes meet
+at its stops) and prints, per stop:
 
 * ``lag_first_us``, ``lag_rest_us``: from the start of the chunk to the start of the first shard
   (the thread that calls the run) and of the others (the pool's);
@@ -59,10 +67,12 @@ class TimedEnsemble(Ensemble):
 
 
 class StopsOf(Observer):
-    """Stops where ``history`` would (its ``next_stop``) and does nothing there."""
+    """Stops where ``history`` would (its ``next_stop``) and does nothing there; takes copies of
+    the state there if ``copies``."""
 
-    def __init__(self, history: History) -> None:
+    def __init__(self, history: History, copies: bool) -> None:
         self.history = history
+        self.takes_state_copies = copies
 
     def begin(self, ensemble: Any, target_step: int) -> None:
         self.history.begin(ensemble, target_step)
@@ -71,16 +81,21 @@ class StopsOf(Observer):
         return self.history.next_stop(step)
 
 
-def timed_run(points: int, steps: int, threads: int, stopped: bool) -> tuple[float, TimedEnsemble]:
-    """Wall seconds of ``steps`` steps of the CLI's ensemble: in one chunk, or stopped where the
-    run's History stops it (the run's default chunking)."""
-    ens = TimedEnsemble.sample(PARAMS, points, init=INIT, seed=SEED, threads=threads)
+#: The ways to run (module docstring).
+WAYS = ("one chunk", "stops", "copies")
+
+
+def timed_run(points: int, steps: int, threads: int, way: str) -> tuple[float, Ensemble]:
+    """Wall seconds of ``steps`` steps of the CLI's ensemble in one of :data:`WAYS` (stopped where
+    the run's History stops it, with the run's default chunking), and the ensemble."""
+    kind = Ensemble if way == "copies" else TimedEnsemble  # a TimedEnsemble meets at every stop
+    ens = kind.sample(PARAMS, points, init=INIT, seed=SEED, threads=threads)
     ens.launches, ens.chunks = [], []
     start = time.perf_counter()
-    if stopped:
-        ens.run(steps, [StopsOf(History())])
-    else:
+    if way == "one chunk":
         ens.run(steps, chunk_steps=steps)
+    else:
+        ens.run(steps, [StopsOf(History(), copies=way == "copies")])
     return time.perf_counter() - start, ens
 
 
@@ -109,29 +124,32 @@ def anatomy(ens: TimedEnsemble, one_launch_s: float) -> dict[str, float]:
     }
 
 
+def _spread(values: list[float]) -> dict[str, float]:
+    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
+
+
 def measure(points: int, steps: int, threads: int, rounds: int) -> dict[str, Any]:
-    """Alternating rounds of the one-chunk run and the stopped run; medians and ranges."""
-    ones, stopped, parts, stops = [], [], [], 0
+    """Rounds of the three ways, in turns; medians and ranges."""
+    times: dict[str, list[float]] = {way: [] for way in WAYS}
+    parts, stops = [], 0
     for r in range(rounds):
-        order = (False, True) if r % 2 == 0 else (True, False)
-        times = {}
-        for is_stopped in order:
-            seconds, ens = timed_run(points, steps, threads, is_stopped)
-            times[is_stopped] = seconds
-            if is_stopped:
-                stops = len(ens.chunks)
-                kept = ens
-        ones.append(times[False])
-        stopped.append(times[True])
-        parts.append(anatomy(kept, times[False]))
-    ratio = [one / run for one, run in zip(ones, stopped, strict=True)]
-    cost = [(run - one) / stops for one, run in zip(ones, stopped, strict=True)]
+        for way in WAYS[r % 3 :] + WAYS[: r % 3]:
+            seconds, ens = timed_run(points, steps, threads, way)
+            times[way].append(seconds)
+            if way == "stops":
+                stops, stopped = len(ens.chunks), ens
+        parts.append(anatomy(stopped, times["one chunk"][-1]))
+    ones = times["one chunk"]
+    ratio = {way: [one / run for one, run in zip(ones, times[way], strict=True)] for way in WAYS[1:]}
+    cost = [(run - one) / stops for one, run in zip(ones, times["stops"], strict=True)]
     return {
         "threads": threads,
         "chunks": stops,
         "one_chunk_s": statistics.median(ones),
-        "stopped_s": statistics.median(stopped),
-        "ratio": {"median": statistics.median(ratio), "min": min(ratio), "max": max(ratio)},
+        "stopped_s": statistics.median(times["stops"]),
+        "copies_s": statistics.median(times["copies"]),
+        "ratio": _spread(ratio["stops"]),
+        "copies_ratio": _spread(ratio["copies"]),
         "ms_per_stop": statistics.median(cost) * 1e3,
         **{key: statistics.median(p[key] for p in parts) for key in parts[0]},
     }
@@ -141,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--points", type=int, default=10_000)
     parser.add_argument("--steps", type=int, default=120_000)
-    parser.add_argument("--rounds", type=int, default=5, help="alternating rounds per thread count")
+    parser.add_argument("--rounds", type=int, default=6, help="rounds per thread count (the ways in turns)")
     parser.add_argument("--threads", type=int, nargs="+", default=None, help="default: 1 and every core")
     parser.add_argument("--quick", action="store_true", help="2 000 points x 3 000 steps, 2 rounds (smoke)")
     parser.add_argument("--json", action="store_true", help="one JSON object on stdout")
@@ -150,22 +168,24 @@ def main(argv: list[str] | None = None) -> int:
         args.points, args.steps, args.rounds = 2_000, 3_000, 2
     threads = args.threads or sorted({1, default_threads()})
     wp.config.quiet = True
-    timed_run(1_000, 10, max(threads), True)  # compile and warm up before any timing
+    timed_run(1_000, 10, max(threads), "stops")  # compile and warm up before any timing
     rows = [measure(args.points, args.steps, t, args.rounds) for t in threads]
     if args.json:
         print(json.dumps({"points": args.points, "steps": args.steps, "rounds": args.rounds, "rows": rows}))
         return 0
-    print(f"{args.points} points x {args.steps} steps, {args.rounds} alternating rounds (medians)")
+    print(f"{args.points} points x {args.steps} steps, {args.rounds} rounds, the ways in turns (medians)")
     print(
-        "| threads | chunks | one chunk (s) | stopped (s) | one / stopped [range] | ms per stop "
-        "| lag first (us) | lag others (us) | spread (us) | tail (us) | shards / one |"
+        "| threads | chunks | one chunk (s) | stops (s) | one / stops [range] | copies (s) "
+        "| one / copies [range] | ms per stop | lag first (us) | lag others (us) | spread (us) "
+        "| tail (us) | shards / one |"
     )
-    print("|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|")
+    print("|---:|---:|---:|---:|---|---:|---|---:|---:|---:|---:|---:|---:|")
     for r in rows:
-        q = r["ratio"]
+        q, c = r["ratio"], r["copies_ratio"]
         print(
             f"| {r['threads']} | {r['chunks']} | {r['one_chunk_s']:.3f} | {r['stopped_s']:.3f} "
-            f"| {q['median']:.3f} [{q['min']:.2f}, {q['max']:.2f}] | {r['ms_per_stop']:.2f} "
+            f"| {q['median']:.3f} [{q['min']:.2f}, {q['max']:.2f}] | {r['copies_s']:.3f} "
+            f"| {c['median']:.3f} [{c['min']:.2f}, {c['max']:.2f}] | {r['ms_per_stop']:.2f} "
             f"| {r['lag_first_us']:.0f} | {r['lag_rest_us']:.0f} | {r['spread_us']:.0f} "
             f"| {r['tail_us']:.0f} | {r['shards_vs_one']:.3f} |"
         )

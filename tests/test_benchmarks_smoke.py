@@ -256,7 +256,8 @@ def test_stop_cost_benchmark_stops_where_the_run_stops():
     """Smoke test of ``benchmarks/stop_cost.py --quick`` (structure; no timing assertions): one row
     per thread count, each stopped run cut where a History stops a run of 2 000 points x 3 000
     steps (its rows and, for so small an ensemble, its block steps; no regular chunk end before the
-    target), and no lag or spread between shards on one thread."""
+    target), the same run with copies at the stops timed too, and no lag or spread between shards
+    on one thread."""
     from warpratchet.ensemble import default_threads
     from warpratchet.history import BLOCK_POINTS, BLOCKS, block_steps, copies_blocks, history_steps
 
@@ -268,8 +269,10 @@ def test_stop_cost_benchmark_stops_where_the_run_stops():
     assert [row["threads"] for row in report["rows"]] == sorted({1, default_threads()})
     for row in report["rows"]:
         assert row["chunks"] == len(stops)
-        assert row["one_chunk_s"] > 0 and row["stopped_s"] > 0 and row["shards_vs_one"] > 0
-        assert row["ratio"]["min"] <= row["ratio"]["median"] <= row["ratio"]["max"]
+        assert row["one_chunk_s"] > 0 and row["stopped_s"] > 0 and row["copies_s"] > 0
+        assert row["shards_vs_one"] > 0
+        for ratio in (row["ratio"], row["copies_ratio"]):
+            assert ratio["min"] <= ratio["median"] <= ratio["max"]
         assert row["lag_first_us"] >= 0 and row["tail_us"] >= 0
         if row["threads"] == 1:
             assert row["lag_rest_us"] == row["spread_us"] == 0
