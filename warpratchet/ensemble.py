@@ -357,7 +357,8 @@ class Ensemble:
         """How many stops :meth:`_advance_copying` may carry the shards through at once: the copies
         of the state that fit in :data:`COPY_BYTES` (and half the memory available); 0 for an
         ensemble whose shards carry more than the state (a kernel variant's arrays, its own launch)."""
-        # the copies' shards bypass _advance and _launch: not where a class or an object has its own
+        # the shards' launches bypass _advance: an ensemble with its own (or its own _launch: a
+        # kernel variant's, a probe's) keeps its stops
         own = (getattr(self._advance, "__func__", None), getattr(self._launch, "__func__", None))
         if own != (Ensemble._advance, Ensemble._launch) or self._extra_arrays():
             return 0

@@ -31,16 +31,15 @@ at the step where the run stops, which every observer sees. The
 called.
 
 Stops without a meeting. On more than one CPU thread every stop is a barrier: the next launch
-waits for the slowest shard, and the threads sleep while the observers work (on a small ensemble
-run long, the README's 10^4 points x 120 000 steps, a tenth of the run on two threads:
-benchmarks/README.md, "stop_cost.py"). Where every observer that asks for stops takes copies
-(``Observer.takes_state_copies``: a :class:`~warpratchet.history.History` does), each thread
-instead carries its shard through the chunk's stops on its own, copying its part of the state at
-each, and the observers get, at their stops, a read-only copy of the ensemble at that step
-(``Ensemble._advance_copying``), while the threads go on: the threads meet once a chunk. The copies
-are the state's bits, so every number is the one a stop would give. At most
-:data:`~warpratchet.ensemble.COPY_BYTES` of copies are held; past that the chunk ends at the next
-stop as above.
+waits for the slowest shard, and the threads sleep while the observers work (what that costs a
+small ensemble run long: benchmarks/README.md, "stop_cost.py"). Where every observer that asks
+for stops takes copies (``Observer.takes_state_copies``: a
+:class:`~warpratchet.history.History` does), each thread instead carries its shard through the
+chunk's stops on its own, copying its part of the state at each, and the observers get, at their
+stops, a read-only copy of the ensemble at that step (``Ensemble._advance_copying``), while the
+threads go on: the threads meet once a chunk. The copies are the state's bits, so every number is
+the one a stop would give. At most :data:`~warpratchet.ensemble.COPY_BYTES` of copies are held;
+past that the chunk ends at the next stop as above.
 """
 
 from __future__ import annotations
@@ -211,27 +210,28 @@ def _next_stops(stoppers: Sequence[Any], step: int) -> list[int | None]:
     return stops
 
 
-def _plan(stoppers: Sequence[Any], step: int, chunk_end: int) -> list[tuple[int, list[Any]]]:
-    """The stops after ``step`` and before ``chunk_end`` that the ``stoppers`` ask for, in order,
-    each with the observers that asked for it."""
-    plan = []
-    while True:
+def _plan(stoppers: Sequence[Any], step: int, chunk_end: int, most: int) -> list[tuple[int, list[Any]]]:
+    """The first ``most`` stops after ``step`` and before ``chunk_end`` that the ``stoppers`` ask
+    for, in order, each with the observers that asked for it."""
+    plan: list[tuple[int, list[Any]]] = []
+    while len(plan) < most:
         stops = _next_stops(stoppers, step)
         stop = min([chunk_end] + [s for s in stops if s is not None])
         if stop == chunk_end:
-            return plan
+            break
         plan.append((stop, [obs for obs, s in zip(stoppers, stops, strict=True) if s == stop]))
         step = stop
+    return plan
 
 
-def _copied(ensemble: Any, stoppers: Sequence[Any], plan: list, pool: Any) -> list[tuple[int, list[Any]]]:
-    """The first stops of ``plan`` that the run's threads may go through without meeting, their
-    observers given copies of the state there (``Ensemble._advance_copying``): on more than one
-    CPU thread, where every observer that stops the run takes copies (:class:`Observer`) and as
-    many as the ensemble's copies hold; else none."""
-    if pool is None or not plan or not all(getattr(obs, "takes_state_copies", False) for obs in stoppers):
-        return []
-    return plan[: getattr(ensemble, "_copies_that_fit", lambda: 0)()]
+def _copies(ensemble: Any, stoppers: Sequence[Any], pool: Any) -> int:
+    """How many stops in a row the run's threads may go through without meeting, their observers
+    given copies of the state there (``Ensemble._advance_copying``): on more than one CPU thread,
+    where every observer that stops the run takes copies (:class:`Observer`), as many as the
+    ensemble's copies hold; else none."""
+    if pool is None or not stoppers or not all(getattr(obs, "takes_state_copies", False) for obs in stoppers):
+        return 0
+    return getattr(ensemble, "_copies_that_fit", lambda: 0)()
 
 
 def run_chunks(
@@ -270,9 +270,10 @@ def run_chunks(
                 # Chunk ends sit at global multiples of chunk_steps, so a run resumed from any
                 # step reports (and archives) at the same steps as an uninterrupted one.
                 chunk_end = min(step + chunk_steps - step % chunk_steps, target)
-                plan = _plan(stoppers, step, chunk_end)
-                copied = _copied(ensemble, stoppers, plan, pool)
-                stop, askers = plan[len(copied)] if len(copied) < len(plan) else (chunk_end, None)
+                copies = _copies(ensemble, stoppers, pool)
+                plan = _plan(stoppers, step, chunk_end, copies + 1)
+                copied = plan[:copies]
+                stop, askers = plan[copies] if copies < len(plan) else (chunk_end, None)
                 mark = time.perf_counter()
 
                 def at_copy(k: int, copy: Any, at: float, copied: list = copied) -> None:

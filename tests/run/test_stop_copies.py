@@ -3,8 +3,8 @@ their own, and the observers that take copies (a History) get the ensemble at th
 copies of its state (``warpratchet.runloop``, "Stops without a meeting").
 
 Every number must be the one a stop gives: the rows, the block records and the state are compared
-bit for bit with the same run whose threads meet at every stop (``runloop._copied`` returning no
-stop), on 2 and 3 threads, with every copy held and with room for three copies only. And what a
+bit for bit with the same run whose threads meet at every stop (``runloop._copies`` returning
+0), on 2 and 3 threads, with every copy held and with room for three copies only. And what a
 stop guarantees still holds: a copy is the state at its step, it cannot be run, an error leaves the
 ensemble whole (an observer's) or marked undefined (a shard's), and Ctrl-C stops the run at the end
 of the chunk in flight.
@@ -71,7 +71,7 @@ def test_copies_give_the_rows_blocks_and_state_of_stops_bit_for_bit(
         copied = [step for batch in batches for step in batch]
         assert max(len(b) for b in batches) == copies and set(copied) < set(inside)
         assert len(copied) >= copies * (len(inside) // (copies + 1))
-    monkeypatch.setattr(runloop, "_copied", lambda *args: [])
+    monkeypatch.setattr(runloop, "_copies", lambda *args: 0)
     batches.clear()
     with_stops = History(block_points=64, **settings)
     reference = _history_run(threads, with_stops, chunk_steps=1500)
