@@ -470,7 +470,8 @@ class Ensemble:
 
         Its launches are done whenever an observer is called, so an observer may run its
         per-point work on them (the history rows and the transport spread do); it must not shut
-        them down: the run does, after the observers' ``end``."""
+        them down: the run does, after the observers' ``end``. A copy of the state that a run hands
+        an observer while its threads go on (:mod:`warpratchet.runloop`) has none."""
         return self._run_pool
 
     def run(

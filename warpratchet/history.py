@@ -48,8 +48,9 @@ interrupted and continued to the same target records the same rows and blocks, b
 an uninterrupted one (:meth:`History.restore` continues a history kept in an archive). Each row
 costs about one summary (:meth:`Ensemble.summary <warpratchet.ensemble.Ensemble.summary>`: the
 summary and the variance of ``p_n - p_0`` in the same memory-bound passes over the state, on the
-run's threads): the time of some tens of kernel steps, little against a long run and much
-against a short run of many points (measured: ``benchmarks/README.md``, "end_to_end.py").
+run's threads, or on the observer's thread from a copy of the state while the run's threads go on:
+:mod:`warpratchet.runloop`): the time of some tens of kernel steps, little against a long run and
+much against a short run of many points (measured: ``benchmarks/README.md``, "end_to_end.py").
 """
 
 from __future__ import annotations
