@@ -69,11 +69,13 @@ def kernel_alone(points: int, steps: int, threads: int, device: str = "cpu") -> 
     return ens, clock.timing
 
 
-def _spread(d: dict[str, float]) -> str:
+def spread_text(d: dict[str, float]) -> str:
+    """A :func:`median_range` as ``median [min, max]``."""
     return f"{d['median']:.3f} [{d['min']:.2f}, {d['max']:.2f}]"
 
 
-def _median_range(values: list[float]) -> dict[str, float]:
+def median_range(values: list[float]) -> dict[str, float]:
+    """The median and range of ``values``."""
     return {"median": statistics.median(values), "min": min(values), "max": max(values)}
 
 
@@ -126,8 +128,8 @@ def main(argv: list[str] | None = None) -> int:
         results.append(
             {
                 "threads": threads,
-                "run_over_kernel_wall": _median_range(wall),
-                "run_over_kernel_cpu": _median_range(cpu),
+                "run_over_kernel_wall": median_range(wall),
+                "run_over_kernel_cpu": median_range(cpu),
                 "kernel_point_steps_per_second": points * steps / timing["kernel"].seconds,
                 "run_point_steps_per_second": points * steps / timing["run"].seconds,
                 "kernel_cpu_use": timing["kernel"].cpu_seconds / (timing["kernel"].seconds * threads),
@@ -146,7 +148,7 @@ def main(argv: list[str] | None = None) -> int:
         head = f"{'threads':>7}  {'wall: median [range]':<24}{'CPU: median [range]':<24}"
         print(head + f"{'CPU use (kernel, run)':>22}")
         for row in results:
-            spreads = [_spread(row[key]) for key in ("run_over_kernel_wall", "run_over_kernel_cpu")]
+            spreads = [spread_text(row[key]) for key in ("run_over_kernel_wall", "run_over_kernel_cpu")]
             uses = f"{row['kernel_cpu_use']:>10.2f}{row['run_cpu_use']:>8.2f}"
             print(f"{row['threads']:>7}  " + "".join(f"{s:<24}" for s in spreads) + uses)
         same = "yes" if equal else "NO"

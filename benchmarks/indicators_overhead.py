@@ -26,13 +26,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import statistics
 import sys
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 import numpy as np
 import warp as wp
+from end_to_end import median_range
 from throughput_contenders import Clock
 
 from warpratchet import Ensemble, MapParams, kernels
@@ -69,10 +69,6 @@ def _launcher(kernel: kernels.AdvanceKernel, init: dict, step0: int, extra: int,
     return run
 
 
-def _spread(values: list[float]) -> dict[str, float]:
-    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
-
-
 def measure(init: dict, step0: int, threads: int, steps: int, rounds: int) -> dict[str, Any]:
     """Alternating timings of both kernels; ratios indicators / map per round."""
     runs = {
@@ -101,8 +97,8 @@ def measure(init: dict, step0: int, threads: int, steps: int, rounds: int) -> di
         "map_point_steps_per_second": point_steps / best["map"],
         "indicators_point_steps_per_second": point_steps / best["indicators"],
         "ratio_of_best": best["map"] / best["indicators"],
-        "ratio_per_wall_second": _spread(wall),
-        "ratio_per_cpu_second": _spread(cpu),
+        "ratio_per_wall_second": median_range(wall),
+        "ratio_per_cpu_second": median_range(cpu),
     }
 
 

@@ -43,13 +43,11 @@ import time
 from typing import Any
 
 import warp as wp
+from end_to_end import INIT, PARAMS, SEED, median_range, spread_text
 
-from warpratchet import Ensemble, MapParams, Observer
+from warpratchet import Ensemble, Observer
 from warpratchet.ensemble import default_threads
 from warpratchet.history import History
-
-PARAMS = MapParams(K=3.0, b1=0.1, b2=0.01)
-INIT, SEED = "strip", 0  # the CLI's defaults
 
 
 class TimedEnsemble(Ensemble):
@@ -124,10 +122,6 @@ def anatomy(ens: TimedEnsemble, one_launch_s: float) -> dict[str, float]:
     }
 
 
-def _spread(values: list[float]) -> dict[str, float]:
-    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
-
-
 def measure(points: int, steps: int, threads: int, rounds: int) -> dict[str, Any]:
     """Rounds of the three ways, in turns; medians and ranges."""
     times: dict[str, list[float]] = {way: [] for way in WAYS}
@@ -148,8 +142,8 @@ def measure(points: int, steps: int, threads: int, rounds: int) -> dict[str, Any
         "one_chunk_s": statistics.median(ones),
         "stopped_s": statistics.median(times["stops"]),
         "copies_s": statistics.median(times["copies"]),
-        "ratio": _spread(ratio["stops"]),
-        "copies_ratio": _spread(ratio["copies"]),
+        "ratio": median_range(ratio["stops"]),
+        "copies_ratio": median_range(ratio["copies"]),
         "ms_per_stop": statistics.median(cost) * 1e3,
         **{key: statistics.median(p[key] for p in parts) for key in parts[0]},
     }
@@ -181,11 +175,10 @@ def main(argv: list[str] | None = None) -> int:
     )
     print("|---:|---:|---:|---:|---|---:|---|---:|---:|---:|---:|---:|---:|")
     for r in rows:
-        q, c = r["ratio"], r["copies_ratio"]
         print(
             f"| {r['threads']} | {r['chunks']} | {r['one_chunk_s']:.3f} | {r['stopped_s']:.3f} "
-            f"| {q['median']:.3f} [{q['min']:.2f}, {q['max']:.2f}] | {r['copies_s']:.3f} "
-            f"| {c['median']:.3f} [{c['min']:.2f}, {c['max']:.2f}] | {r['ms_per_stop']:.2f} "
+            f"| {spread_text(r['ratio'])} | {r['copies_s']:.3f} "
+            f"| {spread_text(r['copies_ratio'])} | {r['ms_per_stop']:.2f} "
             f"| {r['lag_first_us']:.0f} | {r['lag_rest_us']:.0f} | {r['spread_us']:.0f} "
             f"| {r['tail_us']:.0f} | {r['shards_vs_one']:.3f} |"
         )
