@@ -259,6 +259,18 @@ def run_chunks(
     """
     stoppers = [obs for obs in observers if callable(getattr(obs, "next_stop", None))]
     unseen = {id(obs): 0.0 for obs in observers}  # kernel seconds since each was last called
+    mark = 0.0  # when the kernel seconds were last counted into unseen
+
+    def tell(called: Sequence[Any], state: Any, at: float) -> None:
+        """``after_chunk(state, ...)`` on ``called``, the kernel seconds counted up to ``at``."""
+        nonlocal mark
+        for key in unseen:
+            unseen[key] += at - mark
+        mark = at
+        for obs in called:
+            elapsed, unseen[id(obs)] = unseen[id(obs)], 0.0
+            obs.after_chunk(state, elapsed)
+
     began: list[Any] = []
     with deferred_interrupts() as interrupt:
         try:
@@ -274,16 +286,10 @@ def run_chunks(
                 plan = _plan(stoppers, step, chunk_end, copies + 1)
                 copied = plan[:copies]
                 stop, askers = plan[copies] if copies < len(plan) else (chunk_end, None)
-                mark = time.perf_counter()
+                mark = time.perf_counter()  # the observers' time between chunks is not the kernel's
 
                 def at_copy(k: int, copy: Any, at: float, copied: list = copied) -> None:
-                    nonlocal mark
-                    for key in unseen:
-                        unseen[key] += at - mark
-                    mark = at
-                    for obs in copied[k][1]:
-                        elapsed, unseen[id(obs)] = unseen[id(obs)], 0.0
-                        obs.after_chunk(copy, elapsed)
+                    tell(copied[k][1], copy, at)
 
                 try:
                     if copied:
@@ -298,21 +304,13 @@ def run_chunks(
                             f"({type(exc).__name__}: {exc}); points may be at different steps"
                         )
                     raise
-                seconds = time.perf_counter() - mark
-                for key in unseen:
-                    unseen[key] += seconds
                 called = list(observers) if askers is None else askers
-                for obs in called:
-                    elapsed, unseen[id(obs)] = unseen[id(obs)], 0.0
-                    obs.after_chunk(ensemble, elapsed)
+                tell(called, ensemble, time.perf_counter())
                 if interrupt.pending is not None:
                     # The run stops here: the observers that did not ask for this step see it
                     # too (an archive's row, so that its checkpoint can stand here).
                     seen = {id(obs) for obs in called}
-                    for obs in observers:
-                        if id(obs) not in seen:
-                            elapsed, unseen[id(obs)] = unseen[id(obs)], 0.0
-                            obs.after_chunk(ensemble, elapsed)
+                    tell([obs for obs in observers if id(obs) not in seen], ensemble, mark)
         finally:
             try:
                 _end_all(ensemble, began)
