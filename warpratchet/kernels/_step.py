@@ -413,6 +413,49 @@ __builtin_memcpy(&s.in_strip, &in_strip, sizeof(v_t));
     return step, cpu_steps_source(force)
 
 
+#: Lanes in one vector register of the CPU path (8 doubles in a zmm, 4 in a ymm).
+REGISTER_LANES = 8 if CPU_ISA == "avx512" else 4
+#: Whether the CPU ``steps`` without per-step work go register by register
+#: (:func:`_depth_first_steps`): on the AVX-512 path. Written on whole lane vectors, each operation
+#: of the step is split into INTERLEAVE / 8 register operations side by side, and LLVM's register
+#: allocator, tuned for Zen 5, keeps part of the position in memory, a store and a reload on the
+#: step's critical path; the AVX2 path (16 registers) runs faster on whole lane vectors
+#: (``benchmarks/README.md``, "The step loop register by register").
+DEPTH_FIRST = CPU_ISA == "avx512"
+_STEP_FIELDS = ("x", "q", "w", "dx", "dp")
+
+
+def _depth_first_steps(arithmetic: str) -> str:
+    """C++ of the CPU ``steps`` that runs each step one vector register at a time: the lanes held
+    as arrays of register-wide vectors, and within a step the arithmetic for the first register's
+    lanes, then the next's (the loop over registers unrolled), each with ``v_t`` and the constants
+    ``one``, ``zero`` of a register's width. The same operations on every lane as the whole-vector
+    form, so the same bits; only the order of independent instructions differs, which an
+    out-of-order core interleaves by itself."""
+    registers = INTERLEAVE // REGISTER_LANES
+    declare = "".join(f"r_t lanes_{f}[{registers}];\n" for f in _STEP_FIELDS)
+    load = "".join(f"__builtin_memcpy(lanes_{f}, &s.{f}, sizeof(v_t));\n" for f in _STEP_FIELDS)
+    store = "".join(f"__builtin_memcpy(&s.{f}, lanes_{f}, sizeof(v_t));\n" for f in _STEP_FIELDS)
+    take = "".join(f"v_t {f} = lanes_{f}[r];\n" for f in _STEP_FIELDS)
+    put = "".join(f"lanes_{f}[r] = {f};\n" for f in _STEP_FIELDS)
+    return (
+        VECTOR_TYPES
+        + f"typedef double r_t __attribute__((ext_vector_type({REGISTER_LANES})));\n"
+        + declare
+        + load
+        + "for (int i = 0; i < count; i++) {\n"
+        + f"#pragma unroll\nfor (int r = 0; r < {registers}; r++) {{\n"
+        + "typedef r_t v_t;\nconst v_t one = 1.0, zero = 0.0;\n"
+        + take
+        + "{"
+        + arithmetic
+        + "}\n"
+        + put
+        + "}\n}\n"
+        + store
+    )
+
+
 def cpu_steps_source(force: Force, each: str = "", before: str = "", after: str = "") -> str:
     """C++ of the CPU ``steps`` of ``force`` (``count`` iterations, the lanes in local vectors),
     with ``each`` after every iteration (it sees the locals of the step, ``gain`` and ``in_strip``
@@ -421,6 +464,8 @@ def cpu_steps_source(force: Force, each: str = "", before: str = "", after: str 
     # A loop that reads the step's facts gets the gain early (_arithmetic); one that does not (the
     # plain map, the indicators) keeps the source it has, the gain dropped as dead code.
     arithmetic = _arithmetic(force, early_gain=bool(each))
+    if DEPTH_FIRST and not (each or before or after):
+        return _depth_first_steps(arithmetic)
     return (
         VECTOR_TYPES
         + before
