@@ -18,18 +18,22 @@ Contenders (rows):
 * Numba: an ``@njit(parallel=True)`` twin (``prange`` over points, steps inside), 1 and all threads.
 * C OpenMP: ``benchmarks/c/ratchet_map.c`` (OpenMP over points, steps inside), compiled here
   with the system gcc into a temporary directory and called through ctypes; 1 and all threads.
-* C, hand-vectorised (AVX2): ``benchmarks/c/ratchet_map_avx2.c``, AVX2 intrinsics, 3 or 4
-  independent 4-wide vectors per OpenMP thread (both built; the faster counts): the ceiling of a
-  CPU without AVX-512 for this arithmetic.
+* C, hand-vectorised (AVX2): ``benchmarks/c/ratchet_map_avx2.c``, AVX2 intrinsics, 3, 4 or 8
+  independent 4-wide vectors per OpenMP thread (all built; the fastest counts), without AVX-512's
+  registers where the CPU has them (``-mno-avx512f``): the ceiling of a CPU without AVX-512 for
+  this arithmetic.
 * C, hand-vectorised (AVX-512): ``benchmarks/c/ratchet_map_avx512.c``, AVX-512 intrinsics, 6 or
   8 independent 8-wide vectors per OpenMP thread, the ceiling where the CPU has AVX-512; skipped
   with a reason on a CPU without it.
 * warpratchet: :meth:`warpratchet.Ensemble.run` (kernel ``advance_map``), 1 and all threads,
   after a warm-up launch (first-compile time excluded), on the code path of
-  ``warpratchet.kernels.CPU_ISA`` (``WARPRATCHET_CPU_ISA=avx2`` measures the AVX2 path on
-  an AVX-512 CPU).
+  ``warpratchet.kernels.CPU_ISA``.
 * warpratchet + indicators: :class:`warpratchet.sumrule.IndicatorEnsemble` (kernel
   ``advance_map_indicators``: the same orbit plus MEGNO and FLI), 1 and all threads.
+* The same two on the kernels' other code path (AVX2 on an AVX-512 CPU; AVX-512 on an AVX2 one,
+  where they are unavailable), built and run in a child process with ``WARPRATCHET_CPU_ISA`` set
+  (a process builds one path), each against the hand-vectorised C of its own path; their end
+  states too must equal warpratchet's bit for bit.
 
 The code of the rows is in ``throughput_contenders.py``. Each row's step count is chosen from a
 short probe so that a measurement takes about ``--seconds`` (3 s); then the rows are timed in
@@ -64,6 +68,7 @@ import numpy as np
 from throughput_contenders import (
     EVOLVED,
     INIT,
+    PATH_LABELS,
     SEED,
     Advance,
     Contender,
@@ -72,6 +77,8 @@ from throughput_contenders import (
     c_simd_contenders,
     numba_contenders,
     numpy_contenders,
+    other_path_contenders,
+    path_key,
     warp_contenders,
     warp_indicator_contenders,
 )
@@ -91,6 +98,8 @@ TARGET_RATIO = 0.8
 INDICATORS_TARGET_RATIO = 0.7
 #: The ceiling rows: the hand-vectorised C of the warpratchet rows' code path.
 CEILING = f"c_{CPU_ISA}"
+#: The kernels' other code path, whose rows run in a child process built for it.
+OTHER_PATHS = tuple(isa for isa in PATH_LABELS if isa != CPU_ISA)
 #: The target: at most this many bytes of state per point, and 10^8 points must fit in this memory.
 STATE_BYTES_LIMIT = 80
 MEMORY_GIB = 24.0
@@ -175,6 +184,14 @@ def verify(measurements: list[Measurement], init: State, step0: int, params: Map
 
 
 # -- report -----------------------------------------------------------------------------------------
+def _code_path(key: str) -> str | None:
+    """The kernels' code path of a warpratchet row (None for the other rows)."""
+    for isa in OTHER_PATHS:
+        if key in (path_key("warpratchet", isa), path_key("warpratchet_indicators", isa)):
+            return isa
+    return CPU_ISA if key in ("warpratchet", "warpratchet_indicators") else None
+
+
 def _cpu_name() -> str:
     try:
         with open("/proc/cpuinfo") as cpuinfo:
@@ -231,6 +248,7 @@ def build_report(
         for isa in ("avx2", "avx512"):
             ceiling = by_key.get((f"c_{isa}", c.threads))
             simd[isa] = ceiling.rate(points) if ceiling is not None and ceiling.measured else None
+        path = _code_path(c.key) or CPU_ISA
         rows.append(
             {
                 "implementation": c.key,
@@ -247,7 +265,8 @@ def build_report(
                 "vs_warpratchet": rate / warp_rate if measured else None,
                 "vs_c_avx2": rate / simd["avx2"] if measured and simd["avx2"] else None,
                 "vs_c_avx512": rate / simd["avx512"] if measured and simd["avx512"] else None,
-                "vs_ceiling": rate / simd[CPU_ISA] if measured and simd[CPU_ISA] else None,
+                "code_path": _code_path(c.key),
+                "vs_ceiling": rate / simd[path] if measured and simd[path] else None,
                 "bitwise_equal_to_warpratchet": (not m.mismatched) if measured else None,
                 "mismatched_points": m.mismatched if measured else None,
                 "renormalised_points": m.renormalised_points if measured else None,
@@ -263,8 +282,30 @@ def build_report(
             by_key, "warpratchet_indicators", "warpratchet", points, per_cpu=True
         ),
     }
-    met = [r >= TARGET_RATIO for r in map_vs_c.values() if r is not None]
-    met += [r >= INDICATORS_TARGET_RATIO for r in indicators_vs_c.values() if r is not None]
+    other_paths = {
+        isa: {
+            "ceiling": f"c_{isa}",
+            "warpratchet_vs_ceiling": _ratios(by_key, path_key("warpratchet", isa), f"c_{isa}", points),
+            "indicators_vs_ceiling": _ratios(
+                by_key, path_key("warpratchet_indicators", isa), f"c_{isa}", points
+            ),
+            "per_cpu_second": {
+                "warpratchet_vs_ceiling": _ratios(
+                    by_key, path_key("warpratchet", isa), f"c_{isa}", points, per_cpu=True
+                ),
+                "indicators_vs_ceiling": _ratios(
+                    by_key, path_key("warpratchet_indicators", isa), f"c_{isa}", points, per_cpu=True
+                ),
+            },
+        }
+        for isa in OTHER_PATHS
+    }
+    met = []
+    for maps, indicators in [(map_vs_c, indicators_vs_c)] + [
+        (o["warpratchet_vs_ceiling"], o["indicators_vs_ceiling"]) for o in other_paths.values()
+    ]:
+        met += [r >= TARGET_RATIO for r in maps.values() if r is not None]
+        met += [r >= INDICATORS_TARGET_RATIO for r in indicators.values() if r is not None]
     gib_1e8 = 1e8 * bytes_per_point / 2**30
     return {
         "benchmark": "throughput",
@@ -300,6 +341,8 @@ def build_report(
         "indicators_vs_warpratchet": indicators_vs_map,
         # The same ratios per CPU second of each row.
         "per_cpu_second": per_cpu,
+        # The kernels built for the other code path (a child process), against that path's C.
+        "other_paths": other_paths,
         "target": (
             f"advance_map >= {TARGET_RATIO}, indicators >= {INDICATORS_TARGET_RATIO} x hand-vectorised C "
             "of the code path"
@@ -321,6 +364,19 @@ def _fmt(value: float | None, spec: str) -> str:
     return "-" if value is None else format(value, spec)
 
 
+def _print_ratios(names: dict[str, str], ratios: dict[str, Any]) -> None:
+    """One line per ratio of ``ratios`` (per thread count, wall and per CPU second)."""
+    for key, name in names.items():
+        per_threads = ", ".join(
+            f"{_fmt(ratio, '.2f')} on {threads} thread{'s' if threads != '1' else ''}"
+            for threads, ratio in ratios[key].items()
+        )
+        per_cpu = ", ".join(
+            f"{_fmt(ratio, '.2f')} on {threads}" for threads, ratio in ratios["per_cpu_second"][key].items()
+        )
+        print(f"  {name}: {per_threads or '-'} (per CPU second: {per_cpu or '-'})")
+
+
 def print_table(report: dict[str, Any]) -> None:
     prob, mach = report["problem"], report["machine"]
     print(
@@ -334,19 +390,19 @@ def print_table(report: dict[str, Any]) -> None:
         print(f"Seconds: best of {prob['repeat']} runs per row")
     print()
     head = (
-        f"{'implementation':<30}{'threads':>7}{'steps':>8}{'seconds':>9}{'CPU use':>8}{'M pt-steps/s':>14}"
+        f"{'implementation':<38}{'threads':>7}{'steps':>8}{'seconds':>9}{'CPU use':>8}{'M pt-steps/s':>14}"
         f"{'x NumPy':>9}{'x warpratchet':>15}{'x AVX2 C':>10}{'x AVX-512 C':>13}  bitwise = warpratchet"
     )
     print(head)
     print("-" * len(head))
     for row in report["results"]:
         if row["status"] != "ok":
-            print(f"{row['label']:<30}{row['threads']:>7}  {row['status']}")
+            print(f"{row['label']:<38}{row['threads']:>7}  {row['status']}")
             continue
         rate = row["point_steps_per_second"] / 1e6
         same = "yes" if row["bitwise_equal_to_warpratchet"] else f"NO {row['mismatched_points']}"
         print(
-            f"{row['label']:<30}{row['threads']:>7}{row['steps']:>8}{row['seconds']:>9.2f}"
+            f"{row['label']:<38}{row['threads']:>7}{row['steps']:>8}{row['seconds']:>9.2f}"
             f"{row['cpu_use']:>8.2f}{rate:>14.1f}"
             f"{_fmt(row['vs_numpy'], '.2f'):>9}{_fmt(row['vs_warpratchet'], '.3f'):>15}"
             f"{_fmt(row['vs_c_avx2'], '.3f'):>10}{_fmt(row['vs_c_avx512'], '.3f'):>13}  {same}"
@@ -362,19 +418,15 @@ def print_table(report: dict[str, Any]) -> None:
         f"{report['indicators_target_ratio_vs_ceiling']} for the indicators; the indicators at >= "
         f"{report['indicators_target_ratio']} of warpratchet):"
     )
-    for name, key in (
-        ("warpratchet / hand-vectorised C", "warpratchet_vs_ceiling"),
-        ("warpratchet + indicators / hand-vectorised C", "indicators_vs_ceiling"),
-        ("warpratchet + indicators / warpratchet", "indicators_vs_warpratchet"),
-    ):
-        per_threads = ", ".join(
-            f"{_fmt(ratio, '.2f')} on {threads} thread{'s' if threads != '1' else ''}"
-            for threads, ratio in report[key].items()
-        )
-        per_cpu = ", ".join(
-            f"{_fmt(ratio, '.2f')} on {threads}" for threads, ratio in report["per_cpu_second"][key].items()
-        )
-        print(f"  {name}: {per_threads or '-'} (per CPU second: {per_cpu or '-'})")
+    names = {
+        "warpratchet_vs_ceiling": "warpratchet / hand-vectorised C",
+        "indicators_vs_ceiling": "warpratchet + indicators / hand-vectorised C",
+        "indicators_vs_warpratchet": "warpratchet + indicators / warpratchet",
+    }
+    _print_ratios(names, report)
+    for isa, other in report["other_paths"].items():
+        print(f"The {PATH_LABELS[isa]} code path (kernels built for it in a child process), against its C:")
+        _print_ratios({key: names[key] for key in ("warpratchet_vs_ceiling", "indicators_vs_ceiling")}, other)
     fits = "fits" if report["fits_1e8_points"] else "does NOT fit"
     print(
         f"State: {report['state_bytes_per_point']} bytes per point (limit {report['state_bytes_limit']}); "
@@ -467,6 +519,11 @@ def main(argv: list[str] | None = None) -> int:
             "c_avx512": c_simd_contenders("avx512", PARAMS, threads, Path(workdir)),
             "warpratchet": warp_contenders(PARAMS, threads, args.device),
             "warpratchet_indicators": warp_indicator_contenders(PARAMS, threads, points, args.device),
+            **{
+                path_key("warpratchet", isa): other_path_contenders(isa, PARAMS, threads, points)
+                for isa in OTHER_PATHS
+                if args.device == "cpu"
+            },
         }.items():
             builds[key] = build
             contenders.extend(rows)

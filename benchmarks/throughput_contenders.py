@@ -8,11 +8,15 @@ instead.
 
 from __future__ import annotations
 
+import atexit
 import ctypes
 import functools
 import math
+import os
+import pickle
 import shutil
 import subprocess
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -38,9 +42,15 @@ C_FLAGS = ("-O3", "-march=native", "-fopenmp", "-ffp-contract=off")
 #: The hand-vectorised programs: ISA -> (source, /proc/cpuinfo flag it needs, label, vectors per
 #: block: each is built, the faster counts per measurement, doubles per vector).
 C_SIMD = {
-    "avx2": (C_DIR / "ratchet_map_avx2.c", "avx2", "C, hand-vectorised (AVX2)", (3, 4), 4),
+    "avx2": (C_DIR / "ratchet_map_avx2.c", "avx2", "C, hand-vectorised (AVX2)", (3, 4, 8), 4),
     "avx512": (C_DIR / "ratchet_map_avx512.c", "avx512f", "C, hand-vectorised (AVX-512)", (6, 8), 8),
 }
+#: Flags after ``-march=native`` per hand-vectorised ISA: the AVX2 program on an AVX-512 CPU is
+#: kept to what an AVX2 CPU has (16 vector registers, no EVEX encodings), as the kernels' AVX2
+#: path is (``WARPRATCHET_CPU_ISA=avx2``).
+C_ISA_FLAGS = {"avx2": ("-mno-avx512f",), "avx512": ()}
+#: The code paths of the CPU kernels and the labels of their rows.
+PATH_LABELS = {"avx2": "AVX2", "avx512": "AVX-512"}
 
 State = dict[str, np.ndarray]
 
@@ -197,7 +207,7 @@ def _build_c(
         f"-DRENORM_THRESHOLD={RENORM_THRESHOLD!r}",
         f"-DRENORM_CHECK_EVERY={RENORM_CHECK_EVERY}",
     )
-    command = [gcc, *C_FLAGS, "-fPIC", "-shared", f"-I{include}", *defines]
+    command = [gcc, *C_FLAGS, *C_ISA_FLAGS.get(isa, ()), "-fPIC", "-shared", f"-I{include}", *defines]
     command += ["-o", str(library), str(source), "-lm"]
     done = subprocess.run(command, capture_output=True, text=True)
     if done.returncode != 0:
@@ -262,8 +272,9 @@ def c_simd_contenders(
             return [Contender(key, label, t, None, build) for t in threads], build
         libs.append(lib)
     build = (
-        f"{build}: {' '.join(C_FLAGS)}, {isa} intrinsics, NV = {' and '.join(map(str, vectors))} "
-        f"{width}-wide vectors per block (the faster per measurement)"
+        f"{build}: {' '.join(C_FLAGS + C_ISA_FLAGS[isa])}, {isa} intrinsics, NV = "
+        f"{', '.join(map(str, vectors))} "
+        f"{width}-wide vectors per block (the fastest per measurement)"
     )
     return [Contender(key, label, t, _c_advance(libs, params, t)) for t in threads], build
 
@@ -342,3 +353,111 @@ def _map_args(params: MapParams) -> tuple[float, ...]:
     coefficients as constants and leaves these five unused (they are 0)."""
     fields = params.table.fields()
     return (params.K, *(fields.get(name, 0.0) for name in MAP_FIELDS))
+
+
+# -- warpratchet on the other code path -------------------------------------------------------------
+def path_key(key: str, isa: str) -> str:
+    """The row key of a warpratchet row (``warpratchet``, ``warpratchet_indicators``) on code path
+    ``isa``: the key itself on this process's path, else with the path appended."""
+    return key if isa == CPU_ISA else f"{key}_{isa}"
+
+
+class _PathWorker:
+    """A child process whose kernels are built for another code path (``WARPRATCHET_CPU_ISA``,
+    fixed once per process), serving the warpratchet rows' ``advance`` there (:func:`serve`)."""
+
+    def __init__(self, isa: str, params: MapParams, threads: list[int], points: int) -> None:
+        self.isa = isa
+        env = {**os.environ, "WARPRATCHET_CPU_ISA": isa}
+        here = str(Path(__file__).resolve().parent)
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, (here, env.get("PYTHONPATH"))))
+        self.process = subprocess.Popen(
+            [sys.executable, "-c", "import throughput_contenders; throughput_contenders.serve()"],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            env=env,
+        )
+        atexit.register(self.close)
+        self.build = self._ask((params, threads, points))
+
+    def _ask(self, message: object) -> object:
+        pickle.dump(message, self.process.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+        self.process.stdin.flush()
+        try:
+            reply = pickle.load(self.process.stdout)
+        except EOFError:
+            status = self.process.wait()
+            raise RuntimeError(
+                f"the worker for the {self.isa} code path exited with status {status}"
+            ) from None
+        if isinstance(reply, BaseException):
+            raise reply
+        return reply
+
+    def advance(self, key: str, n_threads: int) -> Advance:
+        def advance(state: State, step0: int, steps: int) -> tuple[State, Timing]:
+            return self._ask((key, n_threads, state, step0, steps))
+
+        return advance
+
+    def close(self) -> None:
+        if self.process.poll() is None:
+            self.process.stdin.close()
+            self.process.wait()
+
+
+def other_path_contenders(
+    isa: str, params: MapParams, threads: list[int], points: int
+) -> tuple[list[Contender], str]:
+    """The warpratchet rows (``advance_map``, the indicators) with the kernels built for code path
+    ``isa``, run in a child process; unavailable where this CPU cannot run that path."""
+    names = (("warpratchet", "warpratchet"), ("warpratchet_indicators", "warpratchet + indicators"))
+    flag = C_SIMD[isa][1]
+    if not _cpu_has(flag):
+        reason = f"unavailable: this CPU has no {PATH_LABELS[isa]}"
+        rows = [
+            Contender(path_key(key, isa), f"{label} ({PATH_LABELS[isa]} path)", t, None, reason)
+            for key, label in names
+            for t in threads
+        ]
+        return rows, reason
+    worker = _PathWorker(isa, params, threads, points)
+    rows = [
+        Contender(path_key(key, isa), f"{label} ({PATH_LABELS[isa]} path)", t, worker.advance(key, t))
+        for key, label in names
+        for t in threads
+    ]
+    return rows, str(worker.build)
+
+
+def serve() -> None:
+    """The child of :class:`_PathWorker`: pickled requests on stdin, pickled replies on stdout.
+
+    First ``(params, threads, points)`` (reply: the build text), then ``(key, threads, state, step0,
+    steps)`` per measurement (reply: the row's ``advance``). What else writes to stdout here
+    (Warp's messages) goes to stderr, so the replies stay whole."""
+    replies = os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)
+    requests = sys.stdin.buffer
+    params, threads, points = pickle.load(requests)
+    rows = {}
+    builds = []
+    for made, build in (
+        warp_contenders(params, threads),
+        warp_indicator_contenders(params, threads, points),
+    ):
+        rows.update({(c.key, c.threads): c.advance for c in made})
+        builds.append(build)
+    pickle.dump("; ".join(builds), replies)
+    replies.flush()
+    while True:
+        try:
+            key, n_threads, state, step0, steps = pickle.load(requests)
+        except EOFError:
+            return
+        try:
+            reply = rows[(key, n_threads)](state, step0, steps)
+        except Exception as error:  # told to the parent, which raises it
+            reply = RuntimeError(f"{type(error).__name__}: {error}")
+        pickle.dump(reply, replies, protocol=pickle.HIGHEST_PROTOCOL)
+        replies.flush()

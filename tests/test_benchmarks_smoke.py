@@ -54,6 +54,17 @@ def test_exits_0_with_one_json_object(quick_run: subprocess.CompletedProcess) ->
 
 
 IMPLEMENTATIONS = ("numba", "c", "c_avx2", "c_avx512", "warpratchet", "warpratchet_indicators")
+#: The kernels' code paths; the one a process does not run is measured in a child process.
+PATHS = ("avx2", "avx512")
+
+
+def _other_path(report: dict[str, Any]) -> str:
+    return next(isa for isa in PATHS if isa != report["cpu_isa"])
+
+
+def _other_rows(report: dict[str, Any]) -> tuple[str, str]:
+    isa = _other_path(report)
+    return f"warpratchet_{isa}", f"warpratchet_indicators_{isa}"
 
 
 def _has(flag: str) -> bool:
@@ -63,9 +74,10 @@ def _has(flag: str) -> bool:
 
 def test_rows_cover_every_implementation_at_1_and_all_threads(report: dict[str, Any]) -> None:
     threads = sorted({1, report["machine"]["cores"]})
-    expected = [("numpy", 1)] + [(key, t) for key in IMPLEMENTATIONS for t in threads]
+    implementations = (*IMPLEMENTATIONS, *_other_rows(report))
+    expected = [("numpy", 1)] + [(key, t) for key in implementations for t in threads]
     assert [(row["implementation"], row["threads"]) for row in report["results"]] == expected
-    assert set(report["builds"]) == {"numpy", *IMPLEMENTATIONS}
+    assert set(report["builds"]) == {"numpy", *IMPLEMENTATIONS, _other_rows(report)[0]}
     assert report["problem"]["points"] == QUICK_POINTS and report["problem"]["quick"] is True
 
 
@@ -79,6 +91,10 @@ def test_every_implementation_ran(report: dict[str, Any]) -> None:
             continue
         if row["implementation"] == "c_avx2" and not _has("avx2"):
             assert row["status"] == "unavailable: this CPU has no AVX2", row
+            continue
+        if row["implementation"] in _other_rows(report) and not _has("avx512f"):
+            # an AVX2 CPU builds the AVX-512 path but cannot run it
+            assert row["status"] == "unavailable: this CPU has no AVX-512", row
             continue
         # numba is a test dependency, so it must run here too.
         assert row["status"] == "ok", row
@@ -120,7 +136,14 @@ def test_ratios_are_to_numpy_and_warpratchet_of_the_same_run(report: dict[str, A
             c_rate = rate.get((f"c_{isa}", row["threads"]))
             expected = None if c_rate is None else pytest.approx(row_rate / c_rate, rel=1e-12)
             assert row[f"vs_c_{isa}"] == expected
-        assert row["vs_ceiling"] == row[f"vs_c_{report['cpu_isa']}"]
+        path = row["code_path"] or report["cpu_isa"]
+        assert row["vs_ceiling"] == row[f"vs_c_{path}"]
+        if row["implementation"] in _other_rows(report):
+            assert row["code_path"] == _other_path(report)
+        elif row["implementation"] in ("warpratchet", "warpratchet_indicators"):
+            assert row["code_path"] == report["cpu_isa"]
+        else:
+            assert row["code_path"] is None
 
 
 def test_both_kernels_are_compared_with_the_hand_vectorised_c(report: dict[str, Any]) -> None:
@@ -152,6 +175,23 @@ def test_both_kernels_are_compared_with_the_hand_vectorised_c(report: dict[str, 
                 assert report["per_cpu_second"][key][str(t)] == expected
     met = [r >= 0.8 for r in report["warpratchet_vs_ceiling"].values() if r is not None]
     met += [r >= 0.7 for r in report["indicators_vs_ceiling"].values() if r is not None]
+    # the other code path against its own C (blank only where this CPU cannot run that path)
+    isa = _other_path(report)
+    other = report["other_paths"][isa]
+    assert set(report["other_paths"]) == {isa} and other["ceiling"] == f"c_{isa}"
+    targets = ("warpratchet_vs_ceiling", "indicators_vs_ceiling")
+    for key, implementation in zip(targets, _other_rows(report), strict=True):
+        for t in threads:
+            runs = (implementation, t) in rate and (f"c_{isa}", t) in rate
+            expected = rate[(implementation, t)] / rate[(f"c_{isa}", t)] if runs else None
+            assert other[key][str(t)] == (None if expected is None else pytest.approx(expected, rel=1e-12))
+            if _has("avx512f") and shutil.which("gcc") is not None:
+                assert runs, (implementation, t)
+        met += [
+            r >= (0.8 if key == "warpratchet_vs_ceiling" else 0.7)
+            for r in other[key].values()
+            if r is not None
+        ]
     assert report["target_met"] == (all(met) if met else None)
 
 

@@ -15,12 +15,13 @@
  * the operations of the Warp kernels' CPU body in its order): K f' is taken from the products
  * K*l1, -K, K*l2 (the roundings of the scalar K*slope). Each OpenMP thread takes blocks of NV
  * independent 4-wide vectors (4*NV points), whose dependency chains hide each other's latencies;
- * NV = 3 and 4 are both built and the faster is reported (AVX2 has 16 vector registers: more
- * vectors spill). Compile with -ffp-contract=off (no FMA contraction: NumPy and warpratchet
- * round a*b + c twice).
+ * NV = 3, 4 and 8 are built and the fastest is reported (AVX2 has 16 vector registers: more
+ * vectors spill, which a core with deep out-of-order windows, such as Zen 5's, hides). On a CPU
+ * with AVX-512 it is built with -mno-avx512f, so that it keeps to an AVX2 CPU's 16 registers.
+ * Compile with -ffp-contract=off (no FMA contraction: NumPy and warpratchet round a*b + c twice).
  *
  * Built at run time by throughput.py with
- *   gcc -O3 -march=native -fopenmp -ffp-contract=off -I<folder of force.h> -DNV=<3|4> \
+ *   gcc -O3 -march=native -fopenmp -ffp-contract=off [-mno-avx512f] -I<folder of force.h> -DNV=<3|4|8> \
  *       -DRENORM_THRESHOLD=... -DRENORM_CHECK_EVERY=... -fPIC -shared
  */
 #include <immintrin.h>
