@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from warpratchet import kernels
+from warpratchet.kernels import _libm, _rows
 from warpratchet.observables import lyapunov, momentum_gain
 
 
@@ -198,3 +199,31 @@ def test_lyapunov_into_is_lyapunovs_bits_for_any_stretch_of_points(monkeypatch, 
         got = np.full(hi - lo, 0.5)
         assert kernels.lyapunov_into(state, 7, lo, hi, got) is got
         assert got.view(np.int64).tolist() == want[lo:hi].view(np.int64).tolist(), (lo, hi)
+
+
+@pytest.mark.skipif(
+    not _libm.hypot_matches_numpy(),
+    reason="this machine's NumPy does not call the hypot the kernels transcribe",
+)
+def test_numpys_ftle_with_the_kernels_hypot_is_numpys_bit_for_bit():
+    """Where the FTLE is NumPy's (its ``log`` not transcribed), its ``hypot`` comes from a kernel:
+    the same bits as :func:`lyapunov` over tangents of every size, zeros and subnormals included,
+    and NumPy's own functions for a stretch with a tangent that is not finite."""
+    size = 20_000
+    state = _random_state(size, stretch=300.0)
+    rng = np.random.default_rng(7)
+    for field in ("dx", "dp"):
+        state[field] = state[field] * 10.0 ** rng.integers(-310, 300, size)
+        state[field][rng.integers(0, size, 50)] = 0.0
+    for step, (lo, hi) in ((37, (0, size)), (1, (123, 4567))):
+        out = np.empty(hi - lo)
+        got = _rows.numpy_ftle_into(state, step, lo, hi, out)
+        with np.errstate(all="ignore"):
+            want = lyapunov({k: v[lo:hi] for k, v in state.items()}, step)
+        assert got is out and _bits(got) == _bits(want)
+    for bad in (np.inf, np.nan):
+        broken = dict(state, dp=state["dp"].copy())
+        broken["dp"][size // 3] = bad
+        with np.errstate(all="ignore"):
+            want = lyapunov(broken, 5)
+        assert _bits(_rows.numpy_ftle_into(broken, 5, 0, size, np.empty(size))) == _bits(want)

@@ -60,7 +60,9 @@ __all__ = [
     "LOG_HARD_CASES",
     "LOG_TABLE",
     "ftle_like_numpy",
+    "hypot_into",
     "hypot_like_numpy",
+    "hypot_matches_numpy",
     "log_like_numpy",
     "matches_numpy",
 ]
@@ -606,6 +608,14 @@ def hypot_like_numpy(x, y, *, source: str = GLIBC_FTLE_CPP):
     return _run(HYPOT, x, y, 0.0, 1.0, source)
 
 
+def hypot_into(x: np.ndarray, y: np.ndarray, out: np.ndarray) -> bool:
+    """``glibc_hypot(x, y)`` of two contiguous float64 arrays into ``out`` (of their size); whether
+    it applies to every point (``x`` and ``y`` finite: elsewhere ``out`` is not NumPy's)."""
+    # the kernel's third argument is read by the FTLE only: ``y`` stands in for it
+    _, ok = _run(HYPOT, x, y, y, 1.0, GLIBC_FTLE_CPP, out)
+    return bool(ok.all())
+
+
 def log_like_numpy(x, *, source: str = GLIBC_FTLE_CPP):
     """``glibc_log(x)`` on an array, and where it applies (``x >= 0``)."""
     return _run(LOG, x, 0.0, 0.0, 1.0, source)
@@ -705,6 +715,16 @@ def agrees(source: str = GLIBC_FTLE_CPP) -> bool:
             *ftle_like_numpy(dx, dp, log_stretch, step, source=source), numpy_ftle(dx, dp, log_stretch, step)
         )
     )
+
+
+@functools.cache
+def hypot_matches_numpy() -> bool:
+    """Whether the transcription's ``hypot`` alone gives this machine's NumPy's bits on
+    :func:`gate_sample`. Where NumPy's ``log`` is its own (a CPU with AVX-512) and
+    :func:`matches_numpy` says no, NumPy's ``hypot`` is still the C library's, and the kernel's
+    can take its place."""
+    dx, dp = gate_sample()
+    return _same_bits(*hypot_like_numpy(dx, dp), np.hypot(dx, dp))
 
 
 @functools.cache

@@ -399,6 +399,27 @@ def row_pass_available() -> bool:
         return _available
 
 
+_hypot_available: bool | None = None
+
+
+def numpy_ftle_into(state: dict[str, np.ndarray], step: int, lo: int, hi: int, out: np.ndarray) -> np.ndarray:
+    """NumPy's FTLE of the points ``lo:hi`` of ``state`` into ``out`` (contiguous), its operations in
+    its order (:func:`warpratchet.observables._lyapunov_into`), with the ``hypot`` in a kernel where
+    that is NumPy's here (:func:`._libm.hypot_matches_numpy`): the costliest of the four, the C
+    library's scalar function called point by point."""
+    global _hypot_available
+    with _available_lock:
+        if _hypot_available is None:
+            init_warp()
+            _hypot_available = bool(_libm.hypot_matches_numpy())
+    if _hypot_available and _libm.hypot_into(state["dx"][lo:hi], state["dp"][lo:hi], out):
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            np.log(out, out=out)
+            np.add(state["log_stretch"][lo:hi], out, out=out)
+            return np.divide(out, step, out=out)
+    return _lyapunov_into(state, step, lo, hi, out)
+
+
 def lyapunov_into(state: dict[str, np.ndarray], step: int, lo: int, hi: int, out: np.ndarray) -> np.ndarray:
     """:func:`warpratchet.observables.lyapunov` of the points ``lo:hi`` of ``state`` into ``out``
     (contiguous, shape ``(hi - lo,)``), bit for bit: in a kernel where its ``hypot`` and ``log`` are
@@ -409,7 +430,7 @@ def lyapunov_into(state: dict[str, np.ndarray], step: int, lo: int, hi: int, out
         _, ok = _libm.ftle_like_numpy(x["dx"], x["dp"], x["log_stretch"], float(step), out=out)
         if ok.all():
             return out
-    return _lyapunov_into(state, step, lo, hi, out)
+    return numpy_ftle_into(state, step, lo, hi, out)
 
 
 class RowPass:
@@ -471,7 +492,7 @@ class RowPass:
     ) -> tuple | None:
         lo, hi = group[0][0], group[-1][1]
         if self.own_ftle:
-            _lyapunov_into(self.state, step, lo, hi, self.ftle[lo:hi])
+            numpy_ftle_into(self.state, step, lo, hi, self.ftle[lo:hi])
         counts = np.zeros(2, dtype=np.int64)
         least = np.empty(1)
         status = np.zeros(1, dtype=np.int32)
