@@ -7,7 +7,8 @@ innermost loop (a backward jump and its target) that contains the ``floor`` inst
 counted by register width: packed 512-bit (``zmm``), 256-bit (``ymm``), 128-bit (``xmm``),
 scalar float (``...sd``/``...ss`` on ``xmm``), and the rest (integer, masks, branches); stack
 accesses (``(%rsp)``) count spills. ``points per pass`` is the lanes one pass of the loop
-advances (``INTERLEAVE``), so ``instructions per point-step`` compares kernels of any width.
+advances (``INTERLEAVE``, twice that for a kernel whose Warp thread takes two blocks of lanes),
+so ``instructions per point-step`` compares kernels of any width.
 
 ``--asm`` prints the first kernel's step loop instead, without its branches, as text that
 ``llvm-mca`` reads (the port-throughput bound of one pass, ``benchmarks/README.md``).
@@ -116,7 +117,9 @@ def warpratchet_object(kernel: Any = None) -> tuple[Path, int]:
     module = kernel.cpu.module
     (block_dim,) = {block_dim for _, block_dim in module.execs}  # the variant loaded on the CPU
     build = Path(wp.config.kernel_cache_dir) / module.get_module_identifier(block_dim)
-    return max(build.glob("*.o"), key=lambda p: p.stat().st_mtime), kernels.INTERLEAVE
+    # a paired kernel's thread (the AVX-512 path) advances two blocks of lanes in each pass
+    lanes = kernels.INTERLEAVE * (2 if kernel.cpu_paired else 1)
+    return max(build.glob("*.o"), key=lambda p: p.stat().st_mtime), lanes
 
 
 def main(argv: list[str] | None = None) -> int:

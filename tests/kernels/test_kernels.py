@@ -76,6 +76,25 @@ def test_kernel_equals_numpy_reference_bit_for_bit(p, device):
     assert np.all((got["x"] >= 0) & (got["x"] < 1)) and np.all((got["q"] >= 0) & (got["q"] < 1))
 
 
+@pytest.mark.parametrize("n", [4, 31, 32, 33, 63, 64, 65, 97, 129, 200])
+def test_every_size_of_ensemble_and_shard_is_the_reference_bit_for_bit(n):
+    """Sizes around a Warp thread's lanes and two blocks of them (the AVX-512 path's threads take
+    two; a last block partly or wholly past the end, shards on 1, 2 and 3 threads), with the
+    indicators, whose steps are the map's."""
+    p = MapParams(3.0, 0.1, 0.01)
+    x, q = _start(p, n)
+    zeros = {name: np.zeros(n) for name in reference.INDICATOR_FIELDS}
+    state, accumulators = reference.advance_indicators(p, Ensemble(p, x, q, threads=1).state(), zeros, 300)
+    for threads in (1, 2, 3):
+        ens = Ensemble(p, x, q, threads=threads)
+        ens.run(300, chunk_steps=101)
+        _assert_reference(ens.state(), state, "cpu")
+        indicators = IndicatorEnsemble(p, x, q, threads=threads).run(300, chunk_steps=101)
+        _assert_reference(indicators.state(), state, "cpu")
+        for name, array in zip(reference.INDICATOR_FIELDS, indicators._extra_arrays(), strict=True):
+            np.testing.assert_array_equal(array.numpy(), accumulators[name], err_msg=name)
+
+
 @pytest.mark.parametrize("device", DEVICES)
 def test_global_steps_past_2_to_the_31_renormalise_in_phase(device):
     """Global step numbers are 64-bit: a run resumed at step 2^33 + 3 checks at multiples of 8."""

@@ -10,9 +10,13 @@ loop: ``after_step`` (every step; sees the state and the step's facts ``gain`` a
 ``j = global_step / RENORM_CHECK_EVERY``). A variant without per-step work (``after_step`` None:
 the plain variant, the indicators) runs, on the CPU body, the steps between two checks in one
 call of the body's ``steps`` (the lanes stay in registers and the map's constants are computed
-once per call), so a plain run pays nothing for the variants it does not use. A variant keeps
-per-lane accumulators in its own struct and per-point arrays in another (a kernel argument),
-loaded and stored with the state.
+once per call), so a plain run pays nothing for the variants it does not use. On the AVX-512
+path such a kernel's Warp thread takes two blocks of lanes, the block of its own index ``2 tid``
+and the next (:func:`launch_dim` with ``paired``), advanced together by the body's
+``pair_steps``: eight independent chains of registers per step instead of four, which the
+out-of-order cores need to hide a step's latency (``_step.PAIRED``). A variant keeps per-lane
+accumulators in its own struct and per-point arrays in another (a kernel argument), loaded and
+stored with the state (for each block).
 
 Checks sit at *global* step numbers (``step0`` is 64-bit), so a run split into any chunks, or
 resumed, renormalises at the same steps and stays bitwise equal. One launch advances at most
@@ -33,7 +37,14 @@ from typing import Any
 
 import warp as wp
 
-from ._runtime import CPU_MODULE, CPU_MODULE_OPTIONS, MODULE_OPTIONS, PORTABLE_MODULE, check_cpu_isa_runs
+from ._runtime import (
+    CPU_MODULE,
+    CPU_MODULE_OPTIONS,
+    MODULE_OPTIONS,
+    PAIRED_CPU_FLAGS,
+    PORTABLE_MODULE,
+    check_cpu_isa_runs,
+)
 from ._step import CPU, INTERLEAVE, PORTABLE, RENORM_CHECK_EVERY, Body, Coefficients, State, force_bodies
 
 __all__ = ["MAX_LAUNCH_STEPS", "Variant", "AdvanceKernel", "advance_kernel", "launch_dim"]
@@ -45,9 +56,10 @@ Arrays = Sequence[wp.array]
 MAX_LAUNCH_STEPS = 2**31 - 1
 
 
-def launch_dim(n: int) -> int:
-    """Number of Warp threads that advance ``n`` points."""
-    return (n + INTERLEAVE - 1) // INTERLEAVE
+def launch_dim(n: int, paired: bool = False) -> int:
+    """Number of Warp threads that advance ``n`` points (``paired``: two blocks of lanes each)."""
+    lanes = 2 * INTERLEAVE if paired else INTERLEAVE
+    return (n + lanes - 1) // lanes
 
 
 @dataclass(frozen=True)
@@ -123,6 +135,7 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
     # two checks in one call; the portable body keeps one step per iteration (what CUDA runs).
     runs = (after_step is None or variant_steps is not None) and body.name == CPU.name
     own_steps = variant_steps is not None
+    pairs = runs and not own_steps and body.pair_steps is not None
     variant_steps = variant_steps or _no_steps
     after_step = after_step or _no_step_work
 
@@ -130,10 +143,31 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
         tid = wp.tid()
         n = state.x.shape[0]
         first, spacing = wp.static(body.layout)(tid, n)
+        if wp.static(pairs):
+            first = first * 2  # this thread's two blocks: at 2 tid and 2 tid + 1 (launch_dim)
         s = wp.static(body.load)(state, first, spacing, n)
         acc = wp.static(load)(extra, first, spacing, n)
         global_step = step0
-        if wp.static(runs):
+        if wp.static(pairs):
+            second = first + wp.static(INTERLEAVE)
+            s2 = wp.static(body.load)(state, second, spacing, n)
+            acc2 = wp.static(load)(extra, second, spacing, n)
+            remaining = steps
+            while remaining > 0:
+                run = wp.min(
+                    wp.static(RENORM_CHECK_EVERY) - int(global_step & wp.static(check_mask)), remaining
+                )
+                wp.static(body.pair_steps)(s, s2, p, wp.int32(run))
+                global_step = global_step + wp.int64(run)
+                remaining = remaining - run
+                if (global_step & wp.static(check_mask)) == wp.int64(0):
+                    wp.static(body.renorm)(s)
+                    wp.static(after_check)(acc, s, global_step >> wp.static(check_shift))
+                    wp.static(body.renorm)(s2)
+                    wp.static(after_check)(acc2, s2, global_step >> wp.static(check_shift))
+            wp.static(body.store)(state, s2, second, spacing, n)
+            wp.static(store)(extra, acc2, second, spacing, n)
+        elif wp.static(runs):
             remaining = steps
             while remaining > 0:
                 # The run of steps up to the next check (or the launch's end), in one call.
@@ -160,8 +194,10 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kerne
         wp.static(body.store)(state, s, first, spacing, n)
         wp.static(store)(extra, acc, first, spacing, n)
 
+    if pairs:
+        options = {**options, "cpu_compiler_flags": options["cpu_compiler_flags"] + PAIRED_CPU_FLAGS}
     wp.set_module_options(options, module)
-    return wp.kernel(advance, name=f"advance_{variant.name}", module=module)
+    return wp.kernel(advance, name=f"advance_{variant.name}", module=module), pairs
 
 
 def _build_point(variant: Variant, body: Body, module: str, options: dict) -> wp.Kernel:
@@ -219,8 +255,8 @@ class AdvanceKernel:
         self.variant = variant
         self.module_suffix = module_suffix
         self.one_point = one_point
-        self.cpu = _build(variant, bodies[0], CPU_MODULE + module_suffix, CPU_MODULE_OPTIONS)
-        self.portable = _build(variant, bodies[1], PORTABLE_MODULE + module_suffix, MODULE_OPTIONS)
+        self.cpu, self.cpu_paired = _build(variant, bodies[0], CPU_MODULE + module_suffix, CPU_MODULE_OPTIONS)
+        self.portable, _ = _build(variant, bodies[1], PORTABLE_MODULE + module_suffix, MODULE_OPTIONS)
         self.point = (
             _build_point(variant, bodies[1], PORTABLE_MODULE + module_suffix, MODULE_OPTIONS)
             if one_point
@@ -287,7 +323,8 @@ class AdvanceKernel:
         packing the arrays and the map's coefficients again, the Python work that a run would
         otherwise pay at every stop (``benchmarks/README.md``, "launch_cost.py")."""
         body = self._body(device, body)
-        dim = state[0].shape[0] if body == "point" else launch_dim(state[0].shape[0])
+        n = state[0].shape[0]
+        dim = n if body == "point" else launch_dim(n, paired=body == "cpu" and self.cpu_paired)
         if body == "cpu":
             check_cpu_isa_runs()  # a setting fixed for the process: once per recording will do
         return wp.launch(

@@ -27,6 +27,7 @@ __all__ = [
     "PORTABLE_MODULE",
     "MODULE_OPTIONS",
     "CPU_MODULE_OPTIONS",
+    "PAIRED_CPU_FLAGS",
     "CPU_ISA",
     "CPU_ISAS",
     "check_cpu_isa_runs",
@@ -107,6 +108,11 @@ CPU_COMPILER_FLAGS = (
     " -mllvm=-inline-cold-callsite-threshold=3000 -mllvm=-slp-recursion-max-depth=4"
 )
 CPU_MODULE_OPTIONS = {**MODULE_OPTIONS, "cpu_compiler_flags": CPU_COMPILER_FLAGS}
+#: Added for the modules of kernels whose CPU steps go register by register over two blocks of
+#: lanes (``_step.PAIRED``): LLVM's machine scheduler off. It interleaves the eight independent
+#: chains of registers and then keeps part of them in memory; the source's order, one register's
+#: step after another's, is what an out-of-order core runs fastest (``benchmarks/README.md``).
+PAIRED_CPU_FLAGS = " -mllvm=-enable-misched=false"
 
 _initialised = False
 

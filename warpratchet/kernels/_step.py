@@ -420,22 +420,34 @@ REGISTER_LANES = 8 if CPU_ISA == "avx512" else 4
 #: of the step is split into INTERLEAVE / 8 register operations side by side, and LLVM's register
 #: allocator, tuned for Zen 5, keeps part of the position in memory, a store and a reload on the
 #: step's critical path; the AVX2 path (16 registers) runs faster on whole lane vectors
-#: (``benchmarks/README.md``, "The step loop register by register").
+#: (``benchmarks/README.md``, "Zen 5: the step loop register by register").
 DEPTH_FIRST = CPU_ISA == "avx512"
+#: Whether a kernel without per-step work advances two blocks of lanes per Warp thread on the CPU
+#: body (``Body.pair_steps``): eight independent chains of registers per step instead of four.
+PAIRED = CPU_ISA == "avx512"
 _STEP_FIELDS = ("x", "q", "w", "dx", "dp")
 
 
-def _depth_first_steps(arithmetic: str) -> str:
+def _depth_first_steps(arithmetic: str, blocks: int = 1) -> str:
     """C++ of the CPU ``steps`` that runs each step one vector register at a time: the lanes held
     as arrays of register-wide vectors, and within a step the arithmetic for the first register's
     lanes, then the next's (the loop over registers unrolled), each with ``v_t`` and the constants
     ``one``, ``zero`` of a register's width. The same operations on every lane as the whole-vector
     form, so the same bits; only the order of independent instructions differs, which an
     out-of-order core interleaves by itself."""
-    registers = INTERLEAVE // REGISTER_LANES
+    registers = blocks * INTERLEAVE // REGISTER_LANES
+    lanes = [("s", 0)] + [(f"s{b + 1}", b * (INTERLEAVE // REGISTER_LANES)) for b in range(1, blocks)]
     declare = "".join(f"r_t lanes_{f}[{registers}];\n" for f in _STEP_FIELDS)
-    load = "".join(f"__builtin_memcpy(lanes_{f}, &s.{f}, sizeof(v_t));\n" for f in _STEP_FIELDS)
-    store = "".join(f"__builtin_memcpy(&s.{f}, lanes_{f}, sizeof(v_t));\n" for f in _STEP_FIELDS)
+    load = "".join(
+        f"__builtin_memcpy(lanes_{f} + {at}, &{name}.{f}, sizeof(v_t));\n"
+        for name, at in lanes
+        for f in _STEP_FIELDS
+    )
+    store = "".join(
+        f"__builtin_memcpy(&{name}.{f}, lanes_{f} + {at}, sizeof(v_t));\n"
+        for name, at in lanes
+        for f in _STEP_FIELDS
+    )
     take = "".join(f"v_t {f} = lanes_{f}[r];\n" for f in _STEP_FIELDS)
     put = "".join(f"lanes_{f}[r] = {f};\n" for f in _STEP_FIELDS)
     return (
@@ -545,6 +557,16 @@ def _cpu_steps(force: Force, tag: str) -> tuple[wp.Function, wp.Function]:
     return wp.func_native(step_source)(step_cpu), wp.func_native(steps_source)(steps_cpu)
 
 
+def _pair_steps(force: Force, tag: str) -> wp.Function:
+    """The CPU ``pair_steps`` of ``force``: ``count`` steps of two threads' worth of lanes at once,
+    register by register (:func:`_depth_first_steps`)."""
+
+    def pair_steps_cpu(s: wp.ref[Lanes], s2: wp.ref[Lanes], p: Coefficients, count: wp.int32): ...
+
+    pair_steps_cpu.__qualname__ = f"_pair_steps_cpu_{tag}"
+    return wp.func_native(_depth_first_steps(_arithmetic(force), blocks=2))(pair_steps_cpu)
+
+
 @wp.func_native(_RENORM_CPU)
 def _renorm_cpu(s: wp.ref[Lanes]): ...
 
@@ -566,6 +588,9 @@ class Body(NamedTuple):
     #: The force's piece table (the CPU body: for variants that build steps of their own,
     #: :func:`cpu_steps_source`).
     force: Force | None = None
+    #: ``(ref Lanes, ref Lanes, Coefficients, count: int32)``: ``steps`` of two blocks of lanes at
+    #: once (the CPU body on the AVX-512 path, :data:`PAIRED`); None elsewhere.
+    pair_steps: wp.Function | None = None
 
 
 def _portable_body(force: Force, tag: str) -> Body:
@@ -575,7 +600,8 @@ def _portable_body(force: Force, tag: str) -> Body:
 
 def _cpu_body(force: Force, tag: str) -> Body:
     step, steps = _cpu_steps(force, tag)
-    return Body("cpu", _blocks, _load_cpu, _store_cpu, step, _renorm_cpu, steps, force=force)
+    pair = _pair_steps(force, tag) if PAIRED else None
+    return Body("cpu", _blocks, _load_cpu, _store_cpu, step, _renorm_cpu, steps, force=force, pair_steps=pair)
 
 
 def force_bodies(force: Force) -> tuple[Body, Body]:
