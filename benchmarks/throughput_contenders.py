@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from warpratchet import Ensemble, MapParams, reference
+from warpratchet import Ensemble, MapParams, kernels, reference
 from warpratchet.ensemble import INTERLEAVE, RENORM_CHECK_EVERY, RENORM_THRESHOLD
 from warpratchet.force import Force, c_source, python_source
 from warpratchet.kernels import CPU_ISA
@@ -304,7 +304,8 @@ def warp_contenders(
     Ensemble.sample(params, 64, init=INIT, seed=SEED, threads=1, device=device).run(16)
     build = f"warp {version('warp-lang')} {device}: Ensemble.run, "
     if device == "cpu":
-        build += f"{INTERLEAVE} points per Warp thread, the {CPU_ISA} code path"
+        lanes = f"two blocks of {INTERLEAVE}" if kernels.advance_map.cpu_paired else f"{INTERLEAVE}"
+        build += f"{lanes} points per Warp thread, the {CPU_ISA} code path"
         build += ", one Warp launch per Python thread"
     else:
         build += "one point per GPU thread"
