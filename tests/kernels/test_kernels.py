@@ -292,6 +292,23 @@ _FACTS = kernels.advance_kernel(
 )
 
 
+def test_a_variant_with_per_step_work_keeps_out_of_the_paired_kernels_module():
+    """Where the map's threads take two blocks (the AVX-512 path), its module is built with the
+    scheduler off; a variant with per-step work given no module suffix gets modules of its own,
+    so that building it does not change the shared module's flags."""
+    from warpratchet.kernels._runtime import PAIRED_CPU_FLAGS
+    from warpratchet.kernels._step import PAIRED
+
+    variant = kernels.Variant(
+        "test_facts_shared", _FactArrays, _FactSums, _load_sums, _store_sums, _add_facts, _no_check
+    )
+    kernel = kernels.advance_kernel(variant)
+    shared = kernels.advance_map.cpu.module
+    assert kernels.advance_map.cpu_paired is PAIRED and not kernel.cpu_paired
+    assert (kernel.cpu.module.name != shared.name) is PAIRED
+    assert (PAIRED_CPU_FLAGS in shared.options["cpu_compiler_flags"]) is PAIRED
+
+
 @pytest.mark.parametrize("body", ["cpu", "portable"])
 def test_a_variant_sees_each_steps_gain_and_whether_it_ended_in_the_strip(body):
     """The facts a variant gets per step, against the NumPy twin stepped one step at a time."""

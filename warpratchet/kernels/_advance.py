@@ -45,7 +45,17 @@ from ._runtime import (
     PORTABLE_MODULE,
     check_cpu_isa_runs,
 )
-from ._step import CPU, INTERLEAVE, PORTABLE, RENORM_CHECK_EVERY, Body, Coefficients, State, force_bodies
+from ._step import (
+    CPU,
+    INTERLEAVE,
+    PAIRED,
+    PORTABLE,
+    RENORM_CHECK_EVERY,
+    Body,
+    Coefficients,
+    State,
+    force_bodies,
+)
 
 __all__ = ["MAX_LAUNCH_STEPS", "Variant", "AdvanceKernel", "advance_kernel", "launch_dim"]
 
@@ -117,7 +127,9 @@ def _no_steps(acc: Any, s: Any, p: Coefficients, count: wp.int32, global_step: w
     pass
 
 
-def _build(variant: Variant, body: Body, module: str, options: dict) -> wp.Kernel:
+def _build(variant: Variant, body: Body, module: str, options: dict) -> tuple[wp.Kernel, bool]:
+    """``variant``'s kernel on ``body`` in ``module``, and whether its threads take two blocks of
+    lanes (``pair_steps``; then the module is built with :data:`._runtime.PAIRED_CPU_FLAGS`)."""
     check_mask = wp.int64(RENORM_CHECK_EVERY - 1)
     check_shift = wp.int64(RENORM_CHECK_EVERY.bit_length() - 1)
     after_step, after_check, store = variant.after_step, variant.after_check, variant.store
@@ -252,6 +264,9 @@ class AdvanceKernel:
         bodies: tuple[Body, Body] = (CPU, PORTABLE),
         one_point: bool = False,
     ) -> None:
+        if PAIRED and not module_suffix and (variant.after_step is not None or variant.cpu_steps is not None):
+            # not paired: a module of its own, so that the shared one keeps the paired kernels' flags
+            module_suffix = f".{variant.name}"
         self.variant = variant
         self.module_suffix = module_suffix
         self.one_point = one_point
@@ -369,6 +384,8 @@ def advance_kernel(variant: Variant, module_suffix: str = "", one_point: bool = 
     """Build ``variant``'s kernel on both step bodies (and the one-point kernel if ``one_point``).
 
     The package's kernels share two Warp modules (one compilation each); ``module_suffix`` puts a
-    variant in modules of its own (e.g. ``".transport"``), compiled only when it is used.
+    variant in modules of its own (e.g. ``".transport"``), compiled only when it is used. On the
+    AVX-512 path a variant with per-step work always gets modules of its own (``.<name>`` where
+    no suffix is given): the shared module is built with the paired kernels' flags.
     """
     return AdvanceKernel(variant, module_suffix, one_point=one_point)
