@@ -56,6 +56,7 @@ __all__ = [
     "CPU",
     "PORTABLE",
     "force_bodies",
+    "depth_first_steps_source",
     "cpu_steps_source",
     "load_lanes",
     "load_lane_vector",
@@ -428,7 +429,17 @@ PAIRED = CPU_ISA == "avx512"
 _STEP_FIELDS = ("x", "q", "w", "dx", "dp")
 
 
-def _depth_first_steps(arithmetic: str, blocks: int = 1) -> str:
+def depth_first_steps_source(force: Force, each: str, after_each: str, before: str, after: str) -> str:
+    """C++ of the CPU ``steps`` of ``force`` register by register (:func:`_depth_first_steps`) with
+    a variant's per-step work inside: ``each`` after every register's step (it sees the register's
+    locals ``gain`` and ``in_strip``, of type ``r_t``, and its index ``r``), ``after_each`` after the
+    last register's, ``before`` ahead of the loads and ``after`` behind the stores."""
+    return (
+        before + _depth_first_steps(_arithmetic(force, early_gain=True) + each, after_each=after_each) + after
+    )
+
+
+def _depth_first_steps(arithmetic: str, blocks: int = 1, after_each: str = "") -> str:
     """C++ of the CPU ``steps`` that runs each step one vector register at a time: the lanes held
     as arrays of register-wide vectors, and within a step the arithmetic for the first register's
     lanes, then the next's (the loop over registers unrolled), each with ``v_t`` and the constants
@@ -463,7 +474,9 @@ def _depth_first_steps(arithmetic: str, blocks: int = 1) -> str:
         + arithmetic
         + "}\n"
         + put
-        + "}\n}\n"
+        + "}\n"
+        + after_each
+        + "}\n"
         + store
     )
 

@@ -33,17 +33,25 @@ import warp as wp
 from ..errors import KernelError
 from ._advance import AdvanceKernel, Variant
 from ._runtime import CPU_ISA
-from ._step import INTERLEAVE, Coefficients, Lanes, cpu_steps_source, load_lanes, store_lane_vector
+from ._step import (
+    INTERLEAVE,
+    Coefficients,
+    Lanes,
+    cpu_steps_source,
+    depth_first_steps_source,
+    load_lanes,
+    store_lane_vector,
+)
 from ._transport_cpu import (
     BINS,
     CLAIM_CPU,
     CONFLICT_WORD,
     DECODE_CPU,
     FINISH_CPU,
+    RECORD_AVX512,
     RECORD_CPU,
     ROWS,
     SCRATCH_BYTES,
-    STEP_CPU,
 )
 
 __all__ = ["BINS", "HISTOGRAMS", "CARRY_FIELDS", "advance_map_transport", "TRANSPORT"]
@@ -141,20 +149,16 @@ def _load_cpu(arrays: _Arrays, first: int, spacing: int, n: int):
 def _decode_cpu(acc: wp.ref[_CpuAccumulators]): ...
 
 
-@wp.func_native(STEP_CPU)
-def _after_step_cpu(acc: wp.ref[_CpuAccumulators], s: wp.ref[Lanes], global_step: wp.int64): ...
-
-
 _RECORDING_STEPS: dict[str, wp.Function] = {}
 
 
 def _recording_steps(force) -> wp.Function:
-    """The CPU body's steps of ``force`` with :data:`._transport_cpu.RECORD_CPU` inside: each step's
-    row written from the lanes in registers (a thread's lanes and its 8-step runs between checks
-    stay in registers, as in ``advance_map``)."""
+    """The CPU body's steps of ``force`` with the recording inside (:data:`._transport_cpu.RECORD_CPU`
+    on the AVX2 path, :data:`._transport_cpu.RECORD_AVX512`, register by register, on the AVX-512
+    path): each step's row written from the lanes in registers (a thread's lanes and its 8-step
+    runs between checks stay in registers, as in ``advance_map``)."""
     tag = "paper" if force.family == "paper" else force.key
     if tag not in _RECORDING_STEPS:
-        before, each, after = RECORD_CPU
 
         def recording_steps(
             acc: wp.ref[_CpuAccumulators],
@@ -165,7 +169,12 @@ def _recording_steps(force) -> wp.Function:
         ): ...
 
         recording_steps.__qualname__ = f"_recording_steps_{tag}"
-        source = cpu_steps_source(force, each=each, before=before, after=after)
+        if CPU_ISA == "avx2":
+            before, each, after = RECORD_CPU
+            source = cpu_steps_source(force, each=each, before=before, after=after)
+        else:
+            before, each, after_each, after = RECORD_AVX512
+            source = depth_first_steps_source(force, each, after_each, before, after)
         _RECORDING_STEPS[tag] = wp.func_native(source)(recording_steps)
     return _RECORDING_STEPS[tag]
 
@@ -232,13 +241,12 @@ TRANSPORT = Variant(
     _store,
     _after_step,
     _nothing,
-    cpu_after_step=_after_step_cpu,
     cpu_after_check=_after_check_cpu,
     cpu_store=_store_cpu,
     cpu_load=_load_cpu,
-    # AVX2 (16 registers): one step per call spills the lanes around the hook; the run of steps
-    # between two checks in one call keeps them in registers.
-    cpu_steps=_recording_steps if CPU_ISA == "avx2" else None,
+    # One step per call spills the lanes around the hook; the run of steps between two checks in
+    # one call keeps them in registers (AVX2: coded rows; AVX-512: register by register).
+    cpu_steps=_recording_steps,
 )
 
 

@@ -5,9 +5,10 @@ Counting inside the step loop, lane by lane, costs far more than the step (a CPU
 70x with the portable hooks' scalar loop, 2-3x with the trackers kept as vectors beside the
 state (the registers spill). So the CPU hooks split the work:
 
-* after each step (``after_step``): the step's facts, as they come out of it, into a buffer of
-  128 rows: the top byte of each lane's ``gain`` (``|gain| <= 2`` since ``|K f| < 2``; each value
-  has its own top byte) and the ``in_strip`` lanes as a 32-bit mask;
+* after each step: the step's facts, as they come out of it, into a buffer of 128 rows: on the
+  AVX-512 path the top byte of each lane's ``gain`` (``|gain| <= 2`` since ``|K f| < 2``; each
+  value has its own top byte) and the ``in_strip`` lanes as a 32-bit mask, written register by
+  register (:data:`RECORD_AVX512`);
 * at the renormalisation check (every 8 steps) that leaves fewer than 8 rows free, and at the end
   of the launch (``store``): the rows are decoded (the gain codes are three bits of the top
   bytes, ``_GAIN_CODES``) with the trackers as byte vectors (all lanes of a row at once), each
@@ -16,10 +17,11 @@ state (the registers spill). So the CPU hooks split the work:
   CPU has AVX-512 and GFNI, and on the AVX2 path, each full block of 8 rows is decoded at once
   instead (:mod:`._transport_block`).
 
-On the AVX2 path (16 lanes in 16 registers) a hook after each step spills the lanes around it, so
-there the steps between two checks run in one call with the recording inside the loop
-(:data:`RECORD_CPU`: a row is one byte per lane, ``gain + 8 in_strip``), and the rows past the
-last full block are decoded with the events as byte masks (``_ROWS_AVX2``); the counts are the same.
+A hook after each step, one step per call, spills the lanes around it, so on both paths the
+steps between two checks run in one call with the recording inside the loop. On the AVX2 path
+(16 lanes in 16 registers) a row is one byte per lane, ``gain + 8 in_strip`` (:data:`RECORD_CPU`),
+and the rows past the last full block are decoded with the events as byte masks
+(``_ROWS_AVX2``); the counts are the same.
 
 Trackers: ``age`` (steps since the last visit to B), ``flen`` (steps of the run in progress) are
 bytes kept at most :data:`CAP` after each block, the excess carried exactly in int64 (``*_extra``);
@@ -35,7 +37,7 @@ for every thread, which for a 4.6 KB buffer costs a noticeable part of a launch
 owner and conflict words) turns threads that share it at once into an error.
 """
 
-from ._step import INTERLEAVE
+from ._step import INTERLEAVE, REGISTER_LANES
 from ._transport_block import BLOCK_CODED_CPU, BLOCK_CPU
 
 __all__ = [
@@ -45,7 +47,6 @@ __all__ = [
     "SCRATCH_BYTES",
     "CONFLICT_WORD",
     "CLAIM_CPU",
-    "STEP_CPU",
     "RECORD_CPU",
     "DECODE_CPU",
     "FINISH_CPU",
@@ -109,29 +110,6 @@ static constexpr i32v lane_index = {{{", ".join(str(k) for k in range(INTERLEAVE
     && (acc).arrays.flight_start.strides[0] == 8)
 """
 
-#: ``after_step``: store this step's facts as they come out of the step, with no conversion: the
-#: top byte of each lane's ``gain`` (a double in -2..2: C0, BF, 00, 3F, 40 hex, one per value) into
-#: the buffer row, and the ``in_strip`` lanes as one bit each into ``strip`` (a 32-bit mask from
-#: the step's own comparisons). The decoder reads gain codes from the top bytes (_GAIN_CODES).
-STEP_CPU = f"""
-typedef double v_t __attribute__((ext_vector_type({INTERLEAVE})));
-typedef unsigned char u8v __attribute__((ext_vector_type({INTERLEAVE})));
-typedef unsigned char raw_t __attribute__((ext_vector_type({8 * INTERLEAVE})));
-typedef bool bv __attribute__((ext_vector_type({INTERLEAVE})));
-v_t gain, in_strip;
-__builtin_memcpy(&gain, &s.gain, sizeof(v_t));
-__builtin_memcpy(&in_strip, &s.in_strip, sizeof(v_t));
-const raw_t raw = __builtin_bit_cast(raw_t, gain);
-const u8v top = __builtin_shufflevector(raw, raw, {", ".join(str(8 * k + 7) for k in range(INTERLEAVE))});
-const bv inside = __builtin_convertvector(in_strip != 0.0, bv);
-unsigned char* const scratch = acc.arrays.scratch.data;
-if (acc.rows == 0) acc.base = global_step - 1;
-__builtin_memcpy(scratch + acc.rows * {INTERLEAVE}, &top, sizeof(u8v));
-const unsigned int mask = __builtin_bit_cast({_MASK}, inside);
-__builtin_memcpy(scratch + {_STRIP} + 4 * acc.rows, &mask, 4);
-acc.rows = acc.rows + 1;
-"""
-
 #: The AVX2 body's recording (16 lanes): ``before``, ``each`` and ``after`` of the CPU body's loop
 #: of steps (``step.cpu_steps_source``), so that the lanes stay in registers between two checks.
 #: A row is one byte per lane, ``gain + 8 in_strip`` (exact: -2..2 outside B, 6..10 in it), four
@@ -153,6 +131,34 @@ __builtin_memcpy(scratch + rows * {INTERLEAVE}, &row, sizeof(s8v));
 rows = rows + 1;
 }}
 """,
+    "acc.rows = rows;\n",
+)
+
+#: The AVX-512 body's recording, its steps register by register (``step.depth_first_steps_source``):
+#: ``before``, ``each``, ``after_each`` and ``after``. Each step's facts are stored as they come out
+#: of the step, with no conversion: after each register's step, the top byte of each of its lanes'
+#: ``gain`` (a double in -2..2: C0, BF, 00, 3F, 40 hex, one per value) into the buffer row, and its
+#: lanes' ``in_strip`` as one bit each, byte ``r`` of the row's 32-bit mask ``strip``. The decoder
+#: reads gain codes from the top bytes (_GAIN_CODES).
+_TOP_BYTES = ", ".join(str(8 * k + 7) for k in range(REGISTER_LANES))  # each lane's top byte
+RECORD_AVX512 = (
+    """
+unsigned char* const scratch = acc.arrays.scratch.data;
+int rows = acc.rows;
+if (rows == 0) acc.base = global_step;
+""",
+    f"""{{
+typedef unsigned char raw_r __attribute__((ext_vector_type({8 * REGISTER_LANES})));
+typedef unsigned char top_r __attribute__((ext_vector_type({REGISTER_LANES})));
+typedef bool bool_r __attribute__((ext_vector_type({REGISTER_LANES})));
+const raw_r raw = __builtin_bit_cast(raw_r, gain);
+const top_r top = __builtin_shufflevector(raw, raw, {_TOP_BYTES});
+__builtin_memcpy(scratch + rows * {INTERLEAVE} + r * {REGISTER_LANES}, &top, sizeof(top_r));
+const bool_r inside = __builtin_convertvector(in_strip != 0.0, bool_r);
+scratch[{_STRIP} + 4 * rows + r] = __builtin_bit_cast(unsigned char, inside);
+}}
+""",
+    "rows = rows + 1;\n",
     "acc.rows = rows;\n",
 )
 
