@@ -31,7 +31,9 @@ Two bodies, one arithmetic:
 * :data:`CPU`, the same operations on whole lane vectors in C++ (``wp.func_native`` with clang
   vector extensions): ``floor`` is one ``vrndscalepd`` per 8 lanes (AVX-512), each three-way
   choice a pair of masked blends, and no libm call sits in the step (only ``log`` in a renormalisation,
-  once per ~600 steps for a chaotic point). It is only ever compiled for the CPU.
+  once per ~600 steps for a chaotic point). It is only ever compiled for the CPU. On the AVX-512
+  path its runs of steps go one 8-wide register at a time (:data:`DEPTH_FIRST`), and a kernel
+  without per-step work advances two threads' worth of lanes per call (:data:`PAIRED`).
 
 ``tests/kernels/test_kernels.py`` checks that both give bitwise the same states on the CPU.
 """
@@ -420,8 +422,8 @@ REGISTER_LANES = 8 if CPU_ISA == "avx512" else 4
 #: (:func:`_depth_first_steps`): on the AVX-512 path. Written on whole lane vectors, each operation
 #: of the step is split into INTERLEAVE / 8 register operations side by side, and LLVM's register
 #: allocator, tuned for Zen 5, keeps part of the position in memory, a store and a reload on the
-#: step's critical path; the AVX2 path (16 registers) runs faster on whole lane vectors
-#: (``benchmarks/README.md``, "Zen 5: the step loop register by register").
+#: step's critical path. The AVX2 path (16 registers), measured on Zen 5 only, ran faster on whole
+#: lane vectors (``benchmarks/README.md``, "Zen 5: the step loop register by register").
 DEPTH_FIRST = CPU_ISA == "avx512"
 #: Whether a kernel without per-step work advances two blocks of lanes per Warp thread on the CPU
 #: body (``Body.pair_steps``): eight independent chains of registers per step instead of four.
@@ -429,7 +431,7 @@ PAIRED = CPU_ISA == "avx512"
 _STEP_FIELDS = ("x", "q", "w", "dx", "dp")
 
 
-def depth_first_steps_source(force: Force, each: str, after_each: str, before: str, after: str) -> str:
+def depth_first_steps_source(force: Force, *, each: str, after_each: str, before: str, after: str) -> str:
     """C++ of the CPU ``steps`` of ``force`` register by register (:func:`_depth_first_steps`) with
     a variant's per-step work inside: ``each`` after every register's step (it sees the register's
     locals ``gain`` and ``in_strip``, of type ``r_t``, and its index ``r``), ``after_each`` after the
@@ -446,8 +448,10 @@ def _depth_first_steps(arithmetic: str, blocks: int = 1, after_each: str = "") -
     ``one``, ``zero`` of a register's width. The same operations on every lane as the whole-vector
     form, so the same bits; only the order of independent instructions differs, which an
     out-of-order core interleaves by itself."""
-    registers = blocks * INTERLEAVE // REGISTER_LANES
-    lanes = [("s", 0)] + [(f"s{b + 1}", b * (INTERLEAVE // REGISTER_LANES)) for b in range(1, blocks)]
+    per_block = INTERLEAVE // REGISTER_LANES
+    registers = blocks * per_block
+    # the Lanes arguments: s, then s2, ... (pair_steps), each block's registers after the last's
+    lanes = [("s" if b == 0 else f"s{b + 1}", b * per_block) for b in range(blocks)]
     declare = "".join(f"r_t lanes_{f}[{registers}];\n" for f in _STEP_FIELDS)
     load = "".join(
         f"__builtin_memcpy(lanes_{f} + {at}, &{name}.{f}, sizeof(v_t));\n"

@@ -174,7 +174,9 @@ def _recording_steps(force) -> wp.Function:
             source = cpu_steps_source(force, each=each, before=before, after=after)
         else:
             before, each, after_each, after = RECORD_AVX512
-            source = depth_first_steps_source(force, each, after_each, before, after)
+            source = depth_first_steps_source(
+                force, each=each, after_each=after_each, before=before, after=after
+            )
         _RECORDING_STEPS[tag] = wp.func_native(source)(recording_steps)
     return _RECORDING_STEPS[tag]
 
