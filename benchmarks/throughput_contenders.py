@@ -382,11 +382,11 @@ class _PathWorker:
         self.build = self._ask((params, threads, points))
 
     def _ask(self, message: object) -> object:
-        pickle.dump(message, self.process.stdin, protocol=pickle.HIGHEST_PROTOCOL)
-        self.process.stdin.flush()
         try:
+            pickle.dump(message, self.process.stdin, protocol=pickle.HIGHEST_PROTOCOL)
+            self.process.stdin.flush()
             reply = pickle.load(self.process.stdout)
-        except EOFError:
+        except (EOFError, BrokenPipeError):
             status = self.process.wait()
             raise RuntimeError(
                 f"the worker for the {self.isa} code path exited with status {status}"
@@ -413,22 +413,23 @@ def other_path_contenders(
     """The warpratchet rows (``advance_map``, the indicators) with the kernels built for code path
     ``isa``, run in a child process; unavailable where this CPU cannot run that path."""
     names = (("warpratchet", "warpratchet"), ("warpratchet_indicators", "warpratchet + indicators"))
-    flag = C_SIMD[isa][1]
-    if not _cpu_has(flag):
-        reason = f"unavailable: this CPU has no {PATH_LABELS[isa]}"
-        rows = [
-            Contender(path_key(key, isa), f"{label} ({PATH_LABELS[isa]} path)", t, None, reason)
+
+    def rows(make: Callable[[str, int], Advance | None], reason: str = "") -> list[Contender]:
+        return [
+            Contender(path_key(key, isa), f"{label} ({PATH_LABELS[isa]} path)", t, make(key, t), reason)
             for key, label in names
             for t in threads
         ]
-        return rows, reason
-    worker = _PathWorker(isa, params, threads, points)
-    rows = [
-        Contender(path_key(key, isa), f"{label} ({PATH_LABELS[isa]} path)", t, worker.advance(key, t))
-        for key, label in names
-        for t in threads
-    ]
-    return rows, str(worker.build)
+
+    if not _cpu_has(C_SIMD[isa][1]):
+        reason = f"unavailable: this CPU has no {PATH_LABELS[isa]}"
+        return rows(lambda key, t: None, reason), reason
+    try:
+        worker = _PathWorker(isa, params, threads, points)
+    except RuntimeError as error:  # the child could not build its path: say so in the rows
+        reason = f"unavailable: {error}"
+        return rows(lambda key, t: None, reason), reason
+    return rows(worker.advance), str(worker.build)
 
 
 def serve() -> None:

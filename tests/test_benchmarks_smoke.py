@@ -333,24 +333,51 @@ def test_fig7_tenfold_benchmark_projects_the_figure_from_its_rate():
     assert math.isfinite(report["A"]) and report["b2"] == pytest.approx(0.085)
 
 
+def _contenders(monkeypatch: pytest.MonkeyPatch) -> Any:
+    """``benchmarks/throughput_contenders.py``, imported for this test."""
+    path = SCRIPT.parent / "throughput_contenders.py"
+    spec = importlib.util.spec_from_file_location("throughput_contenders", path)
+    contenders = importlib.util.module_from_spec(spec)
+    monkeypatch.setitem(sys.modules, spec.name, contenders)  # its dataclasses look their module up
+    spec.loader.exec_module(contenders)
+    return contenders
+
+
+@pytest.mark.skipif(not _has("avx2"), reason="the AVX2 code path needs an x86-64 CPU with AVX2")
+def test_the_other_code_paths_rows_say_why_when_their_worker_cannot_start(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """A child process that exits before it answers (here at once, status 3) makes the other code
+    path's rows unavailable, with that reason, instead of stopping the benchmark."""
+    from warpratchet import MapParams
+
+    contenders = _contenders(monkeypatch)
+    popen = subprocess.Popen
+    monkeypatch.setattr(
+        contenders.subprocess,
+        "Popen",
+        lambda args, **kw: popen([sys.executable, "-c", "raise SystemExit(3)"], **kw),
+    )
+    rows, build = contenders.other_path_contenders("avx2", MapParams(3.0, 0.1, 0.01), [1, 2], 1000)
+    reason = "unavailable: the worker for the avx2 code path exited with status 3"
+    assert build == reason
+    assert [(r.key, r.threads, r.advance, r.unavailable) for r in rows] == [
+        (key, t, None, reason) for key in ("warpratchet_avx2", "warpratchet_indicators_avx2") for t in (1, 2)
+    ]
+
+
 def test_the_c_and_numba_contenders_take_another_force_bit_for_bit(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """The C contenders (``force.h`` from the table) and the Numba one (its branches from the
     table) on a force of 4 pieces with slopes 1, -1, 0 and 1/3: 2003 points x 300 steps from
     global step 5, every evolved field equal to warpratchet's bit for bit."""
-    import importlib.util
-
     import numpy as np
 
     from warpratchet import Ensemble, MapParams
     from warpratchet.force import Force
 
-    path = SCRIPT.parent / "throughput_contenders.py"
-    spec = importlib.util.spec_from_file_location("throughput_contenders", path)
-    contenders = importlib.util.module_from_spec(spec)
-    monkeypatch.setitem(sys.modules, spec.name, contenders)  # its dataclasses look their module up
-    spec.loader.exec_module(contenders)
+    contenders = _contenders(monkeypatch)
     params = MapParams(3.0, table=Force.from_knots([0, 0.2, 0.5, 0.7], [0, 0.2, -0.1, -0.1]))
     rng = np.random.default_rng(3)
     x = rng.random(2003)
