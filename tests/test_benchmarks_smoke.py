@@ -361,8 +361,9 @@ def test_the_other_code_paths_rows_say_why_when_their_worker_cannot_start(
     rows, build = contenders.other_path_contenders("avx2", MapParams(3.0, 0.1, 0.01), [1, 2], 1000)
     reason = "unavailable: the worker for the avx2 code path exited with status 3"
     assert build == reason
+    keys = [contenders.path_key(key, "avx2") for key in ("warpratchet", "warpratchet_indicators")]
     assert [(r.key, r.threads, r.advance, r.unavailable) for r in rows] == [
-        (key, t, None, reason) for key in ("warpratchet_avx2", "warpratchet_indicators_avx2") for t in (1, 2)
+        (key, t, None, reason) for key in keys for t in (1, 2)
     ]
 
 
