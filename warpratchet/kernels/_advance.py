@@ -127,6 +127,12 @@ def _no_steps(acc: Any, s: Any, p: Coefficients, count: wp.int32, global_step: w
     pass
 
 
+def _without_step_work(variant: Variant) -> bool:
+    """Whether ``variant`` has no per-step work (the plain map, the indicators): its CPU kernel runs
+    the body's own steps, two blocks of lanes per thread where the body has ``pair_steps``."""
+    return variant.after_step is None and variant.cpu_steps is None
+
+
 def _build(variant: Variant, body: Body, module: str, options: dict) -> tuple[wp.Kernel, bool]:
     """``variant``'s kernel on ``body`` in ``module``, and whether its threads take two blocks of
     lanes (``pair_steps``; then the module is built with :data:`._runtime.PAIRED_CPU_FLAGS`)."""
@@ -147,7 +153,7 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> tuple[wp
     # two checks in one call; the portable body keeps one step per iteration (what CUDA runs).
     runs = (after_step is None or variant_steps is not None) and body.name == CPU.name
     own_steps = variant_steps is not None
-    pairs = runs and not own_steps and body.pair_steps is not None
+    pairs = body.pair_steps is not None and _without_step_work(variant)
     variant_steps = variant_steps or _no_steps
     after_step = after_step or _no_step_work
 
@@ -164,29 +170,16 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> tuple[wp
             second = first + wp.static(INTERLEAVE)
             s2 = wp.static(body.load)(state, second, spacing, n)
             acc2 = wp.static(load)(extra, second, spacing, n)
-            remaining = steps
-            while remaining > 0:
-                run = wp.min(
-                    wp.static(RENORM_CHECK_EVERY) - int(global_step & wp.static(check_mask)), remaining
-                )
-                wp.static(body.pair_steps)(s, s2, p, wp.int32(run))
-                global_step = global_step + wp.int64(run)
-                remaining = remaining - run
-                if (global_step & wp.static(check_mask)) == wp.int64(0):
-                    wp.static(body.renorm)(s)
-                    wp.static(after_check)(acc, s, global_step >> wp.static(check_shift))
-                    wp.static(body.renorm)(s2)
-                    wp.static(after_check)(acc2, s2, global_step >> wp.static(check_shift))
-            wp.static(body.store)(state, s2, second, spacing, n)
-            wp.static(store)(extra, acc2, second, spacing, n)
-        elif wp.static(runs):
+        if wp.static(runs):
             remaining = steps
             while remaining > 0:
                 # The run of steps up to the next check (or the launch's end), in one call.
                 run = wp.min(
                     wp.static(RENORM_CHECK_EVERY) - int(global_step & wp.static(check_mask)), remaining
                 )
-                if wp.static(own_steps):
+                if wp.static(pairs):
+                    wp.static(body.pair_steps)(s, s2, p, wp.int32(run))
+                elif wp.static(own_steps):
                     wp.static(variant_steps)(acc, s, p, wp.int32(run), global_step)
                 else:
                     wp.static(body.steps)(s, p, wp.int32(run))
@@ -195,6 +188,9 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> tuple[wp
                 if (global_step & wp.static(check_mask)) == wp.int64(0):
                     wp.static(body.renorm)(s)
                     wp.static(after_check)(acc, s, global_step >> wp.static(check_shift))
+                    if wp.static(pairs):
+                        wp.static(body.renorm)(s2)
+                        wp.static(after_check)(acc2, s2, global_step >> wp.static(check_shift))
         else:
             for _s in range(steps):
                 wp.static(body.step)(s, p)
@@ -205,6 +201,9 @@ def _build(variant: Variant, body: Body, module: str, options: dict) -> tuple[wp
                     wp.static(after_check)(acc, s, global_step >> wp.static(check_shift))
         wp.static(body.store)(state, s, first, spacing, n)
         wp.static(store)(extra, acc, first, spacing, n)
+        if wp.static(pairs):
+            wp.static(body.store)(state, s2, second, spacing, n)
+            wp.static(store)(extra, acc2, second, spacing, n)
 
     if pairs:
         options = {**options, "cpu_compiler_flags": options["cpu_compiler_flags"] + PAIRED_CPU_FLAGS}
@@ -264,7 +263,7 @@ class AdvanceKernel:
         bodies: tuple[Body, Body] = (CPU, PORTABLE),
         one_point: bool = False,
     ) -> None:
-        if PAIRED and not module_suffix and (variant.after_step is not None or variant.cpu_steps is not None):
+        if PAIRED and not module_suffix and not _without_step_work(variant):
             # not paired: a module of its own, so that the shared one keeps the paired kernels' flags
             module_suffix = f".{variant.name}"
         self.variant = variant
