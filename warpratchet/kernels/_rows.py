@@ -399,20 +399,12 @@ def row_pass_available() -> bool:
         return _available
 
 
-_hypot_available: bool | None = None
-
-
 def numpy_ftle_into(state: dict[str, np.ndarray], step: int, lo: int, hi: int, out: np.ndarray) -> np.ndarray:
     """NumPy's FTLE of the points ``lo:hi`` of ``state`` into ``out`` (contiguous), its operations in
     its order (:func:`warpratchet.observables._lyapunov_into`), with the ``hypot`` in a kernel where
     that is NumPy's here (:func:`._libm.hypot_matches_numpy`): the costliest of the four, the C
     library's scalar function called point by point."""
-    global _hypot_available
-    with _available_lock:
-        if _hypot_available is None:
-            init_warp()
-            _hypot_available = bool(_libm.hypot_matches_numpy())
-    if _hypot_available and _libm.hypot_into(state["dx"][lo:hi], state["dp"][lo:hi], out):
+    if _libm.hypot_matches_numpy() and _libm.hypot_into(state["dx"][lo:hi], state["dp"][lo:hi], out):
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
             np.log(out, out=out)
             np.add(state["log_stretch"][lo:hi], out, out=out)
