@@ -5,12 +5,12 @@ Each round runs ``warpratchet run --K 3 --b1 0.1 --b2 0.01 --points N --steps S 
 ``Ensemble.run(S, chunk_steps=S)``), and times, inside both:
 
 * **launches**: each chunk's launches (``Ensemble._advance``, or ``Ensemble._advance_copying``
-  where the shards go through the chunk's stops on their own: then one entry for the chunk),
-  against the kernel alone's one; with a pool, per entry, how much later the last shard starts
-  than the first (``start lag``) and how much longer the slowest shard runs than the
-  fastest (``shard lag``: what the barrier at the end waits for);
+  where the threads carry pieces of the ensemble through the chunk's stops on their own: then one
+  entry for the chunk), against the kernel alone's one; with a pool, per entry, how much later the
+  last thread starts than the first (``start lag``) and how much longer the slowest thread runs
+  than the fastest (``shard lag``: what the barrier at the end waits for);
 * **rows**: each history row's summary (``Ensemble.summary``), their count and median (a row at
-  a copy of the state is made while the shards run on);
+  a copy of the state is made while the threads run on);
 * **blocks**: the block records made from the history's own copy of its subsample.
 
 Only the ensemble of the run is counted under launches (not the block records' copy). The numbers
@@ -30,6 +30,7 @@ import io
 import json
 import statistics
 import sys
+import threading
 import time
 from collections.abc import Iterator
 
@@ -59,7 +60,7 @@ class Probe:
         def timed_launch(self, lo, hi, step0, steps):
             start = time.perf_counter()
             launch(self, lo, hi, step0, steps)
-            probe._shards.append((lo, start, time.perf_counter()))
+            probe._shards.append((threading.get_ident(), start, time.perf_counter()))
 
         def timed_advance(self, steps, pool):
             probe._shards = []
@@ -69,7 +70,7 @@ class Probe:
                 probe._chunk(steps, time.perf_counter() - start)
 
         def timed_advance_copying(self, stops, end, pool, at_copy):
-            # a chunk whose shards go through its stops on their own: one launch per shard and stop
+            # a chunk whose threads carry pieces through its stops on their own: one entry
             probe._shards, steps = [], end - self.step
             start = time.perf_counter()
             copying(self, stops, end, pool, at_copy)
@@ -100,12 +101,13 @@ class Probe:
             Ensemble.summary, History._record_block = summary, record_block
 
     def _chunk(self, steps: int, seconds: float) -> None:
-        """Record a chunk of ``steps`` that took ``seconds``: each shard's first start and its time
-        from there to its last launch's end (the shard's launches are every stop's in the chunk)."""
+        """Record a chunk of ``steps`` that took ``seconds``: each thread's first start and its time
+        from there to its last launch's end (its launches are its shard's, or its pieces', at every
+        stop in the chunk)."""
         shards: dict[int, list[float]] = {}
-        for lo, start, end in self._shards:
-            first, last = shards.setdefault(lo, [start, end])
-            shards[lo] = [min(first, start), max(last, end)]
+        for thread, start, end in self._shards:
+            first, last = shards.setdefault(thread, [start, end])
+            shards[thread] = [min(first, start), max(last, end)]
         starts, durations = [s for s, _ in shards.values()], [e - s for s, e in shards.values()]
         several = len(shards) > 1
         self.launches.append(

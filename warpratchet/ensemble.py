@@ -89,6 +89,10 @@ _KERNEL_FIELDS = ("x", "q", "winding", "dx", "dp", "log_stretch")
 #: Most bytes of state copies that a run keeps for the stops inside one chunk
 #: (:meth:`Ensemble._advance_copying`; at most half the memory available).
 COPY_BYTES = 64 << 20
+#: Most pieces per thread, and fewest points per piece, of the points that
+#: :meth:`Ensemble._advance_copying`'s threads take one after another.
+PIECES_PER_THREAD = 4
+PIECE_POINTS = 2048
 # The initial-condition samplers (``SAMPLERS``, ``sample_*``, ``grid_nodes``) live in
 # :mod:`warpratchet.sampling`; they are re-exported here, where callers have always found them.
 
@@ -366,6 +370,16 @@ class Ensemble:
         budget = COPY_BYTES if spare is None else min(COPY_BYTES, spare // 2)
         return budget // (8 * len(_KERNEL_FIELDS) * self.points)
 
+    def _copying_pieces(self) -> list[tuple[int, int]]:
+        """The points ``(lo, hi)`` of the pieces :meth:`_advance_copying`'s threads take one after
+        another: up to :data:`PIECES_PER_THREAD` per thread, of at least :data:`PIECE_POINTS` points,
+        cut at whole blocks of lanes."""
+        count = max(self.threads, min(PIECES_PER_THREAD * self.threads, self.points // PIECE_POINTS))
+        block = 2 * INTERLEAVE  # a launch's last block of lanes is a whole block's work
+        cuts = [min(self.points, round(self.points * j / count / block) * block) for j in range(count + 1)]
+        cuts[-1] = self.points
+        return [(lo, hi) for lo, hi in zip(cuts[:-1], cuts[1:], strict=True) if hi > lo]
+
     def _advance_copying(
         self,
         stops: Sequence[int],
@@ -373,57 +387,77 @@ class Ensemble:
         pool: ThreadPoolExecutor,
         at_copy: Callable[[int, Ensemble, float], None],
     ) -> None:
-        """Advance to global step ``end`` on ``pool``'s threads, each thread carrying its shard
-        through ``stops`` (increasing, before ``end``) without waiting for the others, and copying
-        its part of the state at each; meanwhile, on this thread, ``at_copy(k, copy, at)`` for
-        each stop in order as soon as every shard has copied ``stops[k]`` (``copy``: the ensemble at
-        that step, read-only; ``at``: ``time.perf_counter()`` then).
+        """Advance to global step ``end`` on ``pool``'s threads through ``stops`` (increasing, before
+        ``end``) without a meeting at any of them, copying the state at each; meanwhile, on this
+        thread, ``at_copy(k, copy, at)`` for each stop in order as soon as every point's state has
+        been copied at ``stops[k]`` (``copy``: the ensemble at that step, read-only; ``at``:
+        ``time.perf_counter()`` then).
 
-        So a run's threads meet once, at ``end``, instead of at every stop, and the observers of
-        the stops work while the shards go on: the copies are the state's bits, so whatever they
-        compute is what they would have computed at a stop. A shard's error is raised once every
-        shard has stopped, with ``step`` unchanged; an error of ``at_copy`` once every shard is at
-        ``end``, with ``step = end``.
+        The points are cut into pieces (:meth:`_copying_pieces`), and the work into one task per
+        piece and stretch between two stops, taken by the threads in order: every piece's stretch to
+        the first stop, then to the second, and so on, a piece's stretch only after its previous one.
+        So a run's threads meet once, at ``end``, instead of at every stop, a thread that the
+        observers' work slows down takes fewer tasks than the others, and the observers of the stops
+        work while the threads go on: the copies are the state's bits, so whatever they compute is
+        what they would have computed at a stop. A thread's error is raised once every thread has
+        stopped, with ``step`` unchanged; an error of ``at_copy`` once every point is at ``end``,
+        with ``step = end``.
         """
         self._summaries = {}  # the state moves on
         self._variance = None
         views = self.views()
         copies = self._copy_buffers(len(stops))
-        shards = self._shards()
-        copied = [0] * len(shards)  # stops each shard has copied
+        pieces = self._copying_pieces()
+        targets = [*stops, end]
+        tasks = len(targets) * len(pieces)
+        done = [0] * len(pieces)  # stretches each piece has gone through
+        copied = [0] * len(stops)  # pieces copied at each stop
+        taken = [0]  # tasks taken
         failed = []
         ready = threading.Condition()
 
-        def carry(index: int, lo: int, hi: int) -> None:
-            step = self.step
+        def work() -> None:
             try:
-                for k, target in enumerate([*stops, end]):
-                    while step < target:  # a launch's loop counter is 32-bit (MAX_LAUNCH_STEPS)
-                        todo = min(target - step, kernels.MAX_LAUNCH_STEPS)
+                while True:
+                    with ready:
+                        task = taken[0]
+                        taken[0] += 1
+                        if task >= tasks:
+                            return
+                        k, i = divmod(task, len(pieces))
+                        ready.wait_for(lambda i=i, k=k: failed or done[i] == k)
+                        if failed:
+                            return
+                    lo, hi = pieces[i]
+                    step = self.step if k == 0 else targets[k - 1]
+                    while step < targets[k]:  # a launch's loop counter is 32-bit (MAX_LAUNCH_STEPS)
+                        todo = min(targets[k] - step, kernels.MAX_LAUNCH_STEPS)
                         self._launch(lo, hi, step, todo)
                         step += todo
                     if k < len(stops):
                         for name, copy in copies[k].items():
                             copy[lo:hi] = views[name][lo:hi]
-                        with ready:
-                            copied[index] = k + 1
-                            ready.notify_all()
+                    with ready:
+                        done[i] = k + 1
+                        if k < len(stops):
+                            copied[k] += 1
+                        ready.notify_all()
             except BaseException:
                 with ready:
-                    failed.append(index)
+                    failed.append(True)
                     ready.notify_all()
                 raise
 
-        futures = [pool.submit(carry, index, lo, hi) for index, (lo, hi) in enumerate(shards)]
+        futures = [pool.submit(work) for _ in range(min(self.threads, len(pieces)))]
         error = None
         try:
             for k, stop in enumerate(stops):
                 with ready:
-                    ready.wait_for(lambda k=k: failed or min(copied) > k)
+                    ready.wait_for(lambda k=k: failed or copied[k] == len(pieces))
                 if failed:
                     break
                 at_copy(k, self._state_copy(stop, copies[k], views["p0"]), time.perf_counter())
-        except BaseException as exc:  # noqa: BLE001 - raised once no shard writes the arrays
+        except BaseException as exc:  # noqa: BLE001 - raised once no thread writes the arrays
             error = exc
         wait(futures)
         for future in futures:

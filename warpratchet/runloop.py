@@ -34,10 +34,11 @@ Stops without a meeting. On more than one CPU thread every stop is a barrier: th
 waits for the slowest shard, and the threads sleep while the observers work (what that costs a
 small ensemble run long: benchmarks/README.md, "stop_cost.py"). Where every observer that asks
 for stops takes copies (``Observer.takes_state_copies``: a
-:class:`~warpratchet.history.History` does), each thread instead carries its shard through the
-chunk's stops on its own, copying its part of the state at each, and the observers get, at their
-stops, a read-only copy of the ensemble at that step (``Ensemble._advance_copying``), while the
-threads go on: the threads meet once a chunk. The copies are the state's bits, so every number is
+:class:`~warpratchet.history.History` does), the threads instead carry pieces of the ensemble
+through the chunk's stops without waiting for each other, copying each piece's state at each, and
+the observers get, at their stops, a read-only copy of the ensemble at that step
+(``Ensemble._advance_copying``), while the threads go on: the threads meet once a chunk, and the
+one whose core the observers share takes fewer pieces. The copies are the state's bits, so every number is
 the one a stop would give. At most :data:`~warpratchet.ensemble.COPY_BYTES` of copies are held;
 past that the chunk ends at the next stop as above.
 """

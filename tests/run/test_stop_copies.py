@@ -188,3 +188,36 @@ def test_ctrl_c_at_a_copy_stops_the_run_at_the_end_of_the_chunk_in_flight(batche
     assert ens.step == 100 and ens.undefined is None and asks.ended and plain.ended
     assert same_state(ens.state(), _fresh_at(100))
     assert np.array_equal(asks.seen[1][2]["q"], _fresh_at(70)["q"])
+
+
+@pytest.mark.parametrize("threads", [2, 3])
+def test_several_pieces_per_thread_give_the_rows_and_state_of_stops_bit_for_bit(
+    monkeypatch, batches, threads
+):
+    """With pieces of 64 points (several per thread, taken in order, each piece's stretches one after
+    another), every row, block record and the end state are those of the run that stops at each."""
+    monkeypatch.setattr(history_module, "STOP_STEPS", 0)
+    monkeypatch.setattr(ensemble_module, "PIECE_POINTS", 64)
+    pieces = Ensemble.sample(PARAMS, POINTS, "strip", seed=5, threads=threads)._copying_pieces()
+    assert len(pieces) > threads
+    with_copies = History(block_points=64)
+    ens = _history_run(threads, with_copies, chunk_steps=1500)
+    assert batches
+    monkeypatch.setattr(runloop, "_copies", lambda *args: 0)
+    with_stops = History(block_points=64)
+    reference = _history_run(threads, with_stops, chunk_steps=1500)
+    assert same_history(with_copies, with_stops)
+    assert same_state(ens.state(), reference.state()) and ens.step == STEPS
+
+
+@pytest.mark.parametrize("points", [1, 63, 64, 300, 5000, 100_000])
+@pytest.mark.parametrize("threads", [2, 3, 8])
+def test_the_pieces_cover_the_points_in_whole_blocks(points, threads):
+    ens = Ensemble.sample(PARAMS, points, "strip", seed=5, threads=threads)
+    pieces = ens._copying_pieces()
+    assert pieces[0][0] == 0 and pieces[-1][1] == points
+    assert all(a[1] == b[0] for a, b in zip(pieces[:-1], pieces[1:], strict=True))
+    assert all(hi > lo and lo % 64 == 0 for lo, hi in pieces)
+    assert len(pieces) <= max(threads, ensemble_module.PIECES_PER_THREAD * threads)
+    if points >= ensemble_module.PIECE_POINTS * ensemble_module.PIECES_PER_THREAD * threads:
+        assert len(pieces) == ensemble_module.PIECES_PER_THREAD * threads
