@@ -78,8 +78,8 @@ def test_kernel_equals_numpy_reference_bit_for_bit(p, device):
 
 @pytest.mark.parametrize("n", [4, 31, 32, 33, 63, 64, 65, 97, 129, 200])
 def test_every_size_of_ensemble_and_shard_is_the_reference_bit_for_bit(n):
-    """Sizes around a Warp thread's lanes and two blocks of them (the AVX-512 path's threads take
-    two; a last block partly or wholly past the end, shards on 1, 2 and 3 threads), with the
+    """Sizes around a Warp thread's lanes and two blocks of them (the CPU body's threads take two;
+    a last block partly or wholly past the end, shards on 1, 2 and 3 threads), with the
     indicators, whose steps are the map's."""
     p = MapParams(3.0, 0.1, 0.01)
     x, q = _start(p, n)
@@ -293,7 +293,7 @@ _FACTS = kernels.advance_kernel(
 
 
 def test_a_variant_with_per_step_work_keeps_out_of_the_paired_kernels_module():
-    """Where the map's threads take two blocks (the AVX-512 path), its module is built with the
+    """Where the map's threads take two blocks (the CPU body), its module is built with the
     scheduler off; a variant with per-step work given no module suffix gets modules of its own,
     so that building it does not change the shared module's flags."""
     from warpratchet.kernels._runtime import PAIRED_CPU_FLAGS

@@ -10,8 +10,8 @@ loop: ``after_step`` (every step; sees the state and the step's facts ``gain`` a
 ``j = global_step / RENORM_CHECK_EVERY``). A variant without per-step work (``after_step`` None:
 the plain variant, the indicators) runs, on the CPU body, the steps between two checks in one
 call of the body's ``steps`` (the lanes stay in registers and the map's constants are computed
-once per call), so a plain run pays nothing for the variants it does not use. On the AVX-512
-path such a kernel's Warp thread takes two blocks of lanes, the block of its own index ``2 tid``
+once per call), so a plain run pays nothing for the variants it does not use. On the CPU body
+such a kernel's Warp thread takes two blocks of lanes, the block of its own index ``2 tid``
 and the next (:func:`launch_dim` with ``paired``), advanced together by the body's
 ``pair_steps``: eight independent chains of registers per step instead of four, which the
 out-of-order cores need to hide a step's latency (``_step.PAIRED``). A variant keeps per-lane
@@ -383,8 +383,8 @@ def advance_kernel(variant: Variant, module_suffix: str = "", one_point: bool = 
     """Build ``variant``'s kernel on both step bodies (and the one-point kernel if ``one_point``).
 
     The package's kernels share two Warp modules (one compilation each); ``module_suffix`` puts a
-    variant in modules of its own (e.g. ``".transport"``), compiled only when it is used. On the
-    AVX-512 path a variant with per-step work always gets modules of its own (``.<name>`` where
-    no suffix is given): the shared module is built with the paired kernels' flags.
+    variant in modules of its own (e.g. ``".transport"``), compiled only when it is used. A variant
+    with per-step work always gets modules of its own (``.<name>`` where no suffix is given): the
+    shared module is built with the paired kernels' flags.
     """
     return AdvanceKernel(variant, module_suffix, one_point=one_point)

@@ -31,9 +31,9 @@ Two bodies, one arithmetic:
 * :data:`CPU`, the same operations on whole lane vectors in C++ (``wp.func_native`` with clang
   vector extensions): ``floor`` is one ``vrndscalepd`` per 8 lanes (AVX-512), each three-way
   choice a pair of masked blends, and no libm call sits in the step (only ``log`` in a renormalisation,
-  once per ~600 steps for a chaotic point). It is only ever compiled for the CPU. On the AVX-512
-  path its runs of steps go one 8-wide register at a time (:data:`DEPTH_FIRST`), and a kernel
-  without per-step work advances two threads' worth of lanes per call (:data:`PAIRED`).
+  once per ~600 steps for a chaotic point). It is only ever compiled for the CPU. Its runs of
+  steps go one vector register at a time (:data:`DEPTH_FIRST`), and a kernel without per-step
+  work advances two threads' worth of lanes per call (:data:`PAIRED`).
 
 ``tests/kernels/test_kernels.py`` checks that both give bitwise the same states on the CPU.
 """
@@ -419,15 +419,16 @@ __builtin_memcpy(&s.in_strip, &in_strip, sizeof(v_t));
 #: Lanes in one vector register of the CPU path (8 doubles in a zmm, 4 in a ymm).
 REGISTER_LANES = 8 if CPU_ISA == "avx512" else 4
 #: Whether the CPU ``steps`` without per-step work go register by register
-#: (:func:`_depth_first_steps`): on the AVX-512 path. Written on whole lane vectors, each operation
-#: of the step is split into INTERLEAVE / 8 register operations side by side, and LLVM's register
-#: allocator, tuned for Zen 5, keeps part of the position in memory, a store and a reload on the
-#: step's critical path. The AVX2 path (16 registers), measured on Zen 5 only, ran faster on whole
-#: lane vectors (``benchmarks/README.md``, "Zen 5: the step loop register by register").
-DEPTH_FIRST = CPU_ISA == "avx512"
+#: (:func:`_depth_first_steps`). Written on whole lane vectors, each operation of the step is split
+#: into INTERLEAVE / REGISTER_LANES register operations side by side, and LLVM's register
+#: allocator keeps part of the position in memory, a store and a reload on the step's critical
+#: path (on Zen 5; ``benchmarks/README.md``, "Zen 5: the step loop register by register").
+DEPTH_FIRST = True
 #: Whether a kernel without per-step work advances two blocks of lanes per Warp thread on the CPU
-#: body (``Body.pair_steps``): eight independent chains of registers per step instead of four.
-PAIRED = CPU_ISA == "avx512"
+#: body (``Body.pair_steps``): eight independent chains of registers per step instead of four. On
+#: the AVX2 path too: 16 registers cannot hold them, but the spills are off the critical path
+#: (``benchmarks/README.md``, "The AVX2 path paired").
+PAIRED = True
 _STEP_FIELDS = ("x", "q", "w", "dx", "dp")
 
 
@@ -606,7 +607,7 @@ class Body(NamedTuple):
     #: :func:`cpu_steps_source`).
     force: Force | None = None
     #: ``(ref Lanes, ref Lanes, Coefficients, count: int32)``: ``steps`` of two blocks of lanes at
-    #: once (the CPU body on the AVX-512 path, :data:`PAIRED`); None elsewhere.
+    #: once (the CPU body, :data:`PAIRED`); None elsewhere.
     pair_steps: wp.Function | None = None
 
 
