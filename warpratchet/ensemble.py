@@ -86,14 +86,13 @@ __all__ = [
 
 #: The state arrays the kernels take, in their argument order (p0 is not needed to advance).
 _KERNEL_FIELDS = ("x", "q", "winding", "dx", "dp", "log_stretch")
-#: Most bytes of state copies that a run holds at once for the stops inside a chunk, which take
-#: turns in them (:meth:`Ensemble._advance_copying`; at most half the memory available): two
-#: copies of 10^6 points.
-COPY_BYTES = 128 << 20
+#: Most bytes of state copies that a run keeps for the stops inside one chunk
+#: (:meth:`Ensemble._advance_copying`; at most half the memory available).
+COPY_BYTES = 64 << 20
 #: Most pieces per thread, and fewest points per piece, of the points that
 #: :meth:`Ensemble._advance_copying`'s threads take one after another.
 PIECES_PER_THREAD = 4
-PIECE_POINTS = 8192
+PIECE_POINTS = 2048
 # The initial-condition samplers (``SAMPLERS``, ``sample_*``, ``grid_nodes``) live in
 # :mod:`warpratchet.sampling`; they are re-exported here, where callers have always found them.
 
@@ -359,9 +358,9 @@ class Ensemble:
             steps -= todo
 
     def _copies_that_fit(self) -> int:
-        """How many copies of the state :meth:`_advance_copying` may hold at once: those that fit in
-        :data:`COPY_BYTES` (and half the memory available); 0 for an ensemble whose shards carry
-        more than the state (a kernel variant's arrays, its own launch)."""
+        """How many stops :meth:`_advance_copying` may carry the shards through at once: the copies
+        of the state that fit in :data:`COPY_BYTES` (and half the memory available); 0 for an
+        ensemble whose shards carry more than the state (a kernel variant's arrays, its own launch)."""
         # the shards' launches bypass _advance: an ensemble with its own (or its own _launch: a
         # kernel variant's, a probe's) keeps its stops
         own = (getattr(self._advance, "__func__", None), getattr(self._launch, "__func__", None))
@@ -391,8 +390,8 @@ class Ensemble:
         """Advance to global step ``end`` on ``pool``'s threads through ``stops`` (increasing, before
         ``end``) without a meeting at any of them, copying the state at each; meanwhile, on this
         thread, ``at_copy(k, copy, at)`` for each stop in order as soon as every point's state has
-        been copied at ``stops[k]`` (``copy``: the ensemble at that step, read-only, valid until
-        ``at_copy`` returns; ``at``: ``time.perf_counter()`` then).
+        been copied at ``stops[k]`` (``copy``: the ensemble at that step, read-only; ``at``:
+        ``time.perf_counter()`` then).
 
         The points are cut into pieces (:meth:`_copying_pieces`), and the work into one task per
         piece and stretch between two stops, taken by the threads in order: every piece's stretch to
@@ -400,25 +399,21 @@ class Ensemble:
         So a run's threads meet once, at ``end``, instead of at every stop, a thread that the
         observers' work slows down takes fewer tasks than the others, and the observers of the stops
         work while the threads go on: the copies are the state's bits, so whatever they compute is
-        what they would have computed at a stop. The copies take turns in the buffers that fit
-        (:meth:`_copies_that_fit`, at least one): a piece is copied at ``stops[k]`` once
-        ``at_copy`` is done with the copy that last used its buffer. A thread's error is raised once
-        every thread has stopped, with ``step`` unchanged; an error of ``at_copy`` once every point
-        is at ``end`` (no copy is made after it), with ``step = end``.
+        what they would have computed at a stop. A thread's error is raised once every thread has
+        stopped, with ``step`` unchanged; an error of ``at_copy`` once every point is at ``end``,
+        with ``step = end``.
         """
         self._summaries = {}  # the state moves on
         self._variance = None
         views = self.views()
-        copies = self._copy_buffers(max(1, min(len(stops), self._copies_that_fit())))
+        copies = self._copy_buffers(len(stops))
         pieces = self._copying_pieces()
         targets = [*stops, end]
         tasks = len(targets) * len(pieces)
         done = [0] * len(pieces)  # stretches each piece has gone through
         copied = [0] * len(stops)  # pieces copied at each stop
         taken = [0]  # tasks taken
-        seen = [0]  # stops whose at_copy has returned: their buffers are free again
-        failed: list[bool] = []
-        abandoned: list[bool] = []  # at_copy raised: no more copies
+        failed = []
         ready = threading.Condition()
 
         def work() -> None:
@@ -440,13 +435,8 @@ class Ensemble:
                         self._launch(lo, hi, step, todo)
                         step += todo
                     if k < len(stops):
-                        with ready:  # the buffer's last copy must be seen
-                            ready.wait_for(lambda k=k: failed or abandoned or seen[0] > k - len(copies))
-                        if failed:
-                            return
-                        if not abandoned:
-                            for name, copy in copies[k % len(copies)].items():
-                                copy[lo:hi] = views[name][lo:hi]
+                        for name, copy in copies[k].items():
+                            copy[lo:hi] = views[name][lo:hi]
                     with ready:
                         done[i] = k + 1
                         if k < len(stops):
@@ -466,16 +456,9 @@ class Ensemble:
                     ready.wait_for(lambda k=k: failed or copied[k] == len(pieces))
                 if failed:
                     break
-                copy = self._state_copy(stop, copies[k % len(copies)], views["p0"])
-                at_copy(k, copy, time.perf_counter())
-                with ready:
-                    seen[0] = k + 1
-                    ready.notify_all()
+                at_copy(k, self._state_copy(stop, copies[k], views["p0"]), time.perf_counter())
         except BaseException as exc:  # noqa: BLE001 - raised once no thread writes the arrays
             error = exc
-            with ready:
-                abandoned.append(True)
-                ready.notify_all()
         wait(futures)
         for future in futures:
             future.result()

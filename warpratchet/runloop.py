@@ -39,9 +39,8 @@ through the chunk's stops without waiting for each other, copying each piece's s
 the observers get, at their stops, a read-only copy of the ensemble at that step
 (``Ensemble._advance_copying``), while the threads go on: the threads meet once a chunk, and the
 one whose core the observers share takes fewer pieces. The copies are the state's bits, so every number is
-the one a stop would give. At most :data:`~warpratchet.ensemble.COPY_BYTES` of copies are held,
-and the stops take turns in them (a piece waits for its copy's buffer until the observers are
-done with the copy before); where only one fits, the chunk ends at the stop after it, as above.
+the one a stop would give. At most :data:`~warpratchet.ensemble.COPY_BYTES` of copies are held;
+past that the chunk ends at the next stop as above.
 """
 
 from __future__ import annotations
@@ -226,16 +225,11 @@ def _plan(stoppers: Sequence[Any], step: int, chunk_end: int, most: int) -> list
     return plan
 
 
-#: Most stops of one chunk that the threads go through without meeting (the copies take turns).
-MAX_COPIED_STOPS = 10_000
-
-
 def _copies(ensemble: Any, stoppers: Sequence[Any], pool: Any) -> int:
-    """How many copies of the state the run may hold while its threads go through stops without
-    meeting, their observers given copies there (``Ensemble._advance_copying``): on more than one
-    CPU thread, where every observer that stops the run takes copies (:class:`Observer`), as many
-    as fit (two or more take turns, so every stop of a chunk is copied; one, the stop after it
-    ends the chunk); else none."""
+    """How many stops in a row the run's threads may go through without meeting, their observers
+    given copies of the state there (``Ensemble._advance_copying``): on more than one CPU thread,
+    where every observer that stops the run takes copies (:class:`Observer`), as many as the
+    ensemble's copies hold; else none."""
     if pool is None or not stoppers or not all(getattr(obs, "takes_state_copies", False) for obs in stoppers):
         return 0
     return getattr(ensemble, "_copies_that_fit", lambda: 0)()
@@ -289,12 +283,10 @@ def run_chunks(
                 # Chunk ends sit at global multiples of chunk_steps, so a run resumed from any
                 # step reports (and archives) at the same steps as an uninterrupted one.
                 chunk_end = min(step + chunk_steps - step % chunk_steps, target)
-                # with two copies or more, the copies take turns: every stop of the chunk is copied
                 copies = _copies(ensemble, stoppers, pool)
-                most = MAX_COPIED_STOPS if copies >= 2 else copies
-                plan = _plan(stoppers, step, chunk_end, most + 1)
-                copied = plan[:most]
-                stop, askers = plan[most] if most < len(plan) else (chunk_end, None)
+                plan = _plan(stoppers, step, chunk_end, copies + 1)
+                copied = plan[:copies]
+                stop, askers = plan[copies] if copies < len(plan) else (chunk_end, None)
                 mark = time.perf_counter()  # the observers' time between chunks is not the kernel's
 
                 def at_copy(k: int, copy: Any, at: float, copied: list = copied) -> None:
