@@ -38,9 +38,9 @@ for stops takes copies (``Observer.takes_state_copies``: a
 through the chunk's stops without waiting for each other, copying each piece's state at each, and
 the observers get, at their stops, a read-only copy of the ensemble at that step
 (``Ensemble._advance_copying``), while the threads go on: the threads meet once a chunk, and the
-one whose core the observers share takes fewer pieces. The copies are the state's bits, so every number is
-the one a stop would give. At most :data:`~warpratchet.ensemble.COPY_BYTES` of copies are held;
-past that the chunk ends at the next stop as above.
+one whose core the observers share takes fewer pieces. The copies are the state's bits, so every
+number is the one a stop would give. At most :data:`~warpratchet.ensemble.COPY_BYTES` of copies
+are held; past that the chunk ends at the next stop as above.
 """
 
 from __future__ import annotations
