@@ -85,6 +85,38 @@ def test_a_non_finite_tangent_anywhere_leaves_the_group_to_numpy(size):
         assert result is not None and result[4] is False  # finite: no
 
 
+@pytest.mark.parametrize("size", [1, 7, 8, 9, 16, 17, 255, 257, 1000, 5003])
+def test_the_pass_gathers_numpys_masks_in_order_and_stays_in_its_group(size):
+    """Given FTLE values on both sides of the threshold and of the ambiguity band (and equal to their
+    edges, and NaN), each group's gathered FTLE and ``A_n`` are NumPy's boolean gathers, in point
+    order, however the points fall into blocks of eight; a group written after its neighbour leaves
+    the neighbour's stretch as it was."""
+    state = _random_state(size, stretch=10.0)
+    rng = np.random.default_rng(size + 17)
+    step, threshold, low, high = 10, 0.5, 0.25, 1.0
+    ftle = rng.choice([0.1, 0.25, 0.3, 0.5, 0.7, 1.0, 2.0, np.nan], size) * rng.uniform(0.9, 1.1, size)
+    ftle[rng.random(size) < 0.1] = threshold
+    cut = size // 2
+    groups = [[(0, cut)], [(cut, size)]] if cut else [[(0, size)]]
+    if size > 300:  # groups of several leaves, of lengths not multiples of 8
+        groups = [[(0, 101), (101, 250), (250, cut)], [(cut, cut + 3), (cut + 3, size)]]
+    npass = kernels.RowPass(state, ftle)
+    gain = np.empty(size)
+    results = {}
+    for group in reversed(groups):  # the later group first: the earlier one must not touch it
+        results[group[0][0]] = npass(group, gain, step, threshold, low, high)
+    acc = momentum_gain(state) / step
+    for group in groups:
+        lo, hi = group[0][0], group[-1][1]
+        f, a = ftle[lo:hi], acc[lo:hi]
+        chaotic, band = f > threshold, (f > low) & (f < high)
+        got = results[lo]
+        assert _bits(got[0][0]) == _bits(f[chaotic])
+        assert _bits(got[1][0]) == _bits(a[chaotic])
+        assert _bits(got[2][0]) == _bits(a[band])
+        assert got[3] == (f[chaotic].min() if chaotic.any() else np.inf)
+
+
 @pytest.mark.parametrize("size", [5, 257, 1000])
 def test_where_the_kernels_log_is_not_numpys_the_pass_takes_numpys_ftle(monkeypatch, size):
     """With the libm gate off (a NumPy whose ``log`` the transcription does not match), a pass given

@@ -231,14 +231,42 @@ for (wp::int64 first = bounds.data[leaf]; first < hi; first += {BLOCK}) {{
     double* __restrict c_ftle = chaotic_ftle;
     double* __restrict c_acc = chaotic_acc;
     double* __restrict a_acc = ambiguous_acc;
-    for (int j = 0; j < size; ++j) {{
+    int j0 = 0;
+#if defined(__AVX512F__)
+    /* eight points at a time: the kept values compressed to the front of a register, in order,
+       and the whole register stored at the next free index (its other lanes are overwritten by the
+       next values kept, or lie past the last); never past the points read, so inside the group */
+    {{
+        typedef double d8 __attribute__((ext_vector_type(8)));
+        typedef bool b8 __attribute__((ext_vector_type(8)));
+        const d8 zero8 = 0.0;
+        for (; j0 + 8 <= size; j0 += 8) {{
+            d8 f8, a8;
+            __builtin_memcpy(&f8, fb + j0, sizeof(d8));
+            __builtin_memcpy(&a8, ab + j0, sizeof(d8));
+            const b8 above = __builtin_convertvector(f8 > threshold, b8);
+            const b8 inside = __builtin_convertvector((f8 > low) & (f8 < high), b8);
+            const unsigned char chaotic = __builtin_bit_cast(unsigned char, above);
+            const unsigned char band = __builtin_bit_cast(unsigned char, inside);
+            const d8 kept_f = __builtin_ia32_compressdf512_mask(f8, zero8, chaotic);
+            const d8 kept_a = __builtin_ia32_compressdf512_mask(a8, zero8, chaotic);
+            const d8 kept_b = __builtin_ia32_compressdf512_mask(a8, zero8, band);
+            __builtin_memcpy(c_ftle + m, &kept_f, sizeof(d8));
+            __builtin_memcpy(c_acc + m, &kept_a, sizeof(d8));
+            __builtin_memcpy(a_acc + k, &kept_b, sizeof(d8));
+            m += __builtin_popcount(chaotic);
+            k += __builtin_popcount(band);
+        }}
+    }}
+#endif
+    for (int j = j0; j < size; ++j) {{
         const double f = fb[j];
         const double a = ab[j];
         c_ftle[m] = f;
         c_acc[m] = a;
         m += f > threshold ? 1 : 0;
         a_acc[k] = a;
-        k += (f > low) & (f < high) ? 1 : 0;
+        k += ((f > low) & (f < high)) ? 1 : 0;
     }}
 }}
 /* the leaf's gains are still in cache: their sum, as np.add.reduce gives it */
