@@ -15,9 +15,10 @@ pairwise order); the leaves' totals are put together in :mod:`warpratchet.observ
 The FTLE's ``hypot`` and ``log`` are the ones NumPy calls: on a CPU whose NumPy takes them from
 glibc, :mod:`._libm`'s transcriptions of glibc's functions, used only where
 :func:`._libm.matches_numpy` has found them equal to NumPy's on this machine; elsewhere (another
-C library, NumPy's own SIMD ``log``) the row's FTLE is NumPy's, computed before the pass. A point
-the transcription does not cover (a non-finite tangent) is reported, and its group is left to
-NumPy.
+C library, NumPy's own SIMD ``log``) NumPy's ``log(hypot(dx, dp))`` is computed before the pass
+(the ``hypot`` in a kernel where that is NumPy's), and the pass adds the log-stretch and divides
+as NumPy does; or, where that ``hypot`` is not NumPy's, NumPy's FTLE itself. A point the
+transcription does not cover (a non-finite tangent) is reported, and its group is left to NumPy.
 """
 
 from __future__ import annotations
@@ -162,7 +163,15 @@ const wp::int64 hi = bounds.data[leaf + 1];
 for (wp::int64 first = bounds.data[leaf]; first < hi; first += {BLOCK}) {{
     const int size = (int)(hi - first < {BLOCK} ? hi - first : {BLOCK});
     int covered = 1;
-    if (given) {{
+    if (given && row.log_norm) {{
+        /* given log(hypot(dx, dp)): NumPy's sum with the log-stretch, then its division */
+        const double* __restrict ls = log_stretch + first;
+        const double* __restrict ln = inputs.ftle.data + first;
+        for (int j = 0; j < size; ++j) {{
+            const double sum = ls[j] + ln[j];
+            f_block[j] = sum / step;
+        }}
+    }} else if (given) {{
         __builtin_memcpy(f_block, inputs.ftle.data + first, size * sizeof(double));
     }} else {{
         covered = glibc_ftle_block(dx + first, dp + first, log_stretch + first, step, f_block, size);
@@ -287,6 +296,7 @@ class RowScalars:
     threshold: wp.float64
     low: wp.float64
     high: wp.float64
+    log_norm: wp.int32  # 1: the given array holds log(hypot(dx, dp)), not the FTLE
 
 
 @wp.func_native(_GROUP_CPU)
@@ -427,14 +437,24 @@ def row_pass_available() -> bool:
         return _available
 
 
-def numpy_ftle_into(state: dict[str, np.ndarray], step: int, lo: int, hi: int, out: np.ndarray) -> np.ndarray:
-    """NumPy's FTLE of the points ``lo:hi`` of ``state`` into ``out`` (contiguous), its operations in
-    its order (:func:`warpratchet.observables._lyapunov_into`), with the ``hypot`` in a kernel where
-    that is NumPy's here (:func:`._libm.hypot_matches_numpy`): the costliest of the four, the C
-    library's scalar function called point by point."""
+def numpy_log_norm_into(state: dict[str, np.ndarray], lo: int, hi: int, out: np.ndarray) -> bool:
+    """NumPy's ``log(hypot(dx, dp))`` of the points ``lo:hi`` of ``state`` into ``out`` (contiguous),
+    with the ``hypot`` in a kernel, where that is NumPy's here (:func:`._libm.hypot_matches_numpy`:
+    the costlier of the two, the C library's scalar function called point by point); False, and
+    ``out`` meaningless, where it is not, or where a tangent is not finite."""
     if _libm.hypot_matches_numpy() and _libm.hypot_into(state["dx"][lo:hi], state["dp"][lo:hi], out):
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
             np.log(out, out=out)
+        return True
+    return False
+
+
+def numpy_ftle_into(state: dict[str, np.ndarray], step: int, lo: int, hi: int, out: np.ndarray) -> np.ndarray:
+    """NumPy's FTLE of the points ``lo:hi`` of ``state`` into ``out`` (contiguous), its operations in
+    its order (:func:`warpratchet.observables._lyapunov_into`), the ``log(hypot)`` by
+    :func:`numpy_log_norm_into` where it can."""
+    if numpy_log_norm_into(state, lo, hi, out):
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
             np.add(state["log_stretch"][lo:hi], out, out=out)
             return np.divide(out, step, out=out)
     return _lyapunov_into(state, step, lo, hi, out)
@@ -492,8 +512,8 @@ class RowPass:
             name: _buffer(buffers, f"row pass {name}", n)
             for name in ("chaotic_ftle", "chaotic_acc", "ambiguous_acc")
         }
-        # Where the kernel's hypot and log would not be NumPy's, the FTLE is NumPy's, computed in
-        # this pass's own buffer group by group (__call__), and the kernel takes it as given.
+        # Where the kernel's hypot and log would not be NumPy's, NumPy's log(hypot) (or its FTLE) is
+        # computed in this pass's own buffer group by group (__call__), and the kernel takes it.
         self.state = state
         self.own_ftle = ftle is None and not row_pass_available()
         if self.own_ftle:
@@ -511,8 +531,12 @@ class RowPass:
         high: float,
     ) -> tuple | None:
         lo, hi = group[0][0], group[-1][1]
+        log_norm = 0
         if self.own_ftle:
-            numpy_ftle_into(self.state, step, lo, hi, self.ftle[lo:hi])
+            # the sum and the division in the kernel's pass (NumPy's operations), else NumPy's FTLE
+            log_norm = int(numpy_log_norm_into(self.state, lo, hi, self.ftle[lo:hi]))
+            if not log_norm:
+                _lyapunov_into(self.state, step, lo, hi, self.ftle[lo:hi])
         counts = np.zeros(2, dtype=np.int64)
         least = np.empty(1)
         status = np.zeros(1, dtype=np.int32)
@@ -529,6 +553,7 @@ class RowPass:
         bounds = _wrap(np.array([lo for lo, _ in group] + [hi], dtype=np.int64), wp.int64)
         row = RowScalars()
         row.step, row.threshold, row.low, row.high = float(step), float(threshold), float(low), float(high)
+        row.log_norm = log_norm
         args = [self.inputs, outputs, bounds, row]
         wp.launch(_row, dim=1, inputs=args, device="cpu")
         if status[0] & NOT_COVERED:
