@@ -117,7 +117,7 @@ def warpratchet_object(kernel: Any = None) -> tuple[Path, int]:
     module = kernel.cpu.module
     (block_dim,) = {block_dim for _, block_dim in module.execs}  # the variant loaded on the CPU
     build = Path(wp.config.kernel_cache_dir) / module.get_module_identifier(block_dim)
-    # a paired kernel's thread (the AVX-512 path) advances two blocks of lanes in each pass
+    # a paired kernel's thread (``_step.PAIRED``) advances two blocks of lanes in each pass
     lanes = kernels.INTERLEAVE * (2 if kernel.cpu_paired else 1)
     return max(build.glob("*.o"), key=lambda p: p.stat().st_mtime), lanes
 

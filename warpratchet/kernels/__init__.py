@@ -26,8 +26,8 @@ vectors per field) on the AVX-512 path, 16 (four 4-wide vectors) on the AVX2 pat
 that keep a step's lane vectors in the register file. Both paths give the same bits, and no FMA
 contraction anywhere (``-ffp-contract=off``, ``fuse_fp=False``): NumPy rounds ``a*b + c`` twice.
 A kernel without per-step work runs the steps between two renormalisation checks in one call of
-the body, its lanes in registers throughout; on the AVX-512 path one call advances two threads'
-worth of lanes, one 8-wide register after another. ``advance_map_indicators`` takes its logarithm with
+the body, its lanes in registers throughout; one call advances two threads' worth of lanes, one
+vector register after another, on both paths. ``advance_map_indicators`` takes its logarithm with
 :func:`._logarithm.fdlog` (the same bits on every body and in NumPy) on whole lane vectors; the
 renormalisation's ``log`` (once per ~660 steps for a chaotic point) is the C library's, lane by
 lane, for the lanes that need it. The measurements behind these choices, and what each kernel
