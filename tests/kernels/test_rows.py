@@ -124,7 +124,7 @@ def test_where_the_kernels_log_is_not_numpys_the_pass_takes_numpys_ftle(monkeypa
     non-finite tangent gives a non-finite FTLE there, a summary that is not finite."""
     from warpratchet.kernels import _rows
 
-    monkeypatch.setattr(_rows, "_available", False)
+    monkeypatch.setattr(_rows, "_verdicts", {**_rows._verdicts, "libm": False})
     state = _random_state(size, stretch=0.5)
     step, threshold = 10, 0.03
     groups = [[(0, size // 2)], [(size // 2, size)]]  # the second group first: each its own FTLE
@@ -148,9 +148,9 @@ def test_where_the_kernels_log_is_not_numpys_the_pass_takes_numpys_ftle(monkeypa
 
 
 def test_the_gates_verdict_is_kept_per_machine_and_read_back(monkeypatch, tmp_path):
-    """The libm gate runs once per machine and set of binaries: its verdict is kept in Warp's
-    kernel cache under a key of what it depends on; a kept verdict is used as it is, a file that
-    holds anything else is checked again."""
+    """A gate (the libm one, the hypot one) runs once per machine and set of binaries: its verdict
+    is kept in Warp's kernel cache under its name and a key of what it depends on, and in the
+    process; a kept verdict is used as it is, a file that holds anything else is checked again."""
     import warp as wp
 
     from warpratchet.kernels import _rows
@@ -160,18 +160,29 @@ def test_the_gates_verdict_is_kept_per_machine_and_read_back(monkeypatch, tmp_pa
     assert key is not None  # Linux, with glibc's libm loaded
     monkeypatch.setattr(wp.config, "kernel_cache_dir", str(tmp_path))
     checks = []
-    monkeypatch.setattr(_rows, "matches_numpy", lambda: checks.append(1) or True)
-    assert _rows._gate_verdict() is True and len(checks) == 1
+
+    def gate() -> bool:
+        checks.append(1)
+        return True
+
+    def verdict(name: str = "libm") -> bool:
+        monkeypatch.setattr(_rows, "_verdicts", {})  # a new process
+        return _rows._gate_verdict(name, gate)
+
+    assert verdict() is True and len(checks) == 1
     kept = tmp_path / f"warpratchet-libm-{key}"
     assert kept.read_text() == "True" and list(tmp_path.iterdir()) == [kept]
-    assert _rows._gate_verdict() is True and len(checks) == 1  # read back, not checked again
+    assert verdict() is True and len(checks) == 1  # read back, not checked again
     kept.write_text("False")
-    assert _rows._gate_verdict() is False and len(checks) == 1
+    assert verdict() is False and len(checks) == 1
+    assert _rows._gate_verdict("libm", gate) is False and len(checks) == 1  # the process's, kept
     kept.write_text("garbage")
-    assert _rows._gate_verdict() is True and len(checks) == 2
-    monkeypatch.setattr(_rows, "_available", None)
+    assert verdict() is True and len(checks) == 2
+    assert verdict("hypot") is True and len(checks) == 3  # each gate its own verdict
+    assert (tmp_path / f"warpratchet-hypot-{key}").read_text() == "True"
     kept.write_text("False")  # a machine whose NumPy the transcription does not match
-    assert kernels.row_pass_available() is False  # (monkeypatch restores the process's verdict)
+    monkeypatch.setattr(_rows, "_verdicts", {})
+    assert kernels.row_pass_available() is False  # (monkeypatch restores the process's verdicts)
 
 
 def test_the_pass_gives_momentum_gains_bits_at_every_winding():
@@ -220,7 +231,7 @@ def test_lyapunov_into_is_lyapunovs_bits_for_any_stretch_of_points(monkeypatch, 
     from warpratchet.kernels import _rows
 
     if gate == "off":
-        monkeypatch.setattr(_rows, "_available", False)
+        monkeypatch.setattr(_rows, "_verdicts", {**_rows._verdicts, "libm": False})
     state = _random_state(3000, stretch=40.0)
     state["dx"][2000], state["dp"][2000] = 0.0, -0.0  # a zero norm
     state["dp"][2500] = np.nan  # a stretch with one of these goes to NumPy

@@ -135,7 +135,7 @@ def test_a_shards_row_records_are_the_gain_and_lyapunovs_numerator_bit_for_bit(m
 
     monkeypatch.setattr(_shard, "RECORD_PIECE", 64)
     if gate == "off":
-        monkeypatch.setattr(_rows, "_available", False)
+        monkeypatch.setattr(_rows, "_verdicts", {**_rows._verdicts, "libm": False})
     ens = Ensemble.sample(SPEC.params, 1001, "torus", seed=2, threads=1).run(40)
     views = ens.state()
     views["dx"][[3, 500]] = [np.inf, np.nan]

@@ -28,6 +28,7 @@ import hashlib
 import itertools
 import os
 import threading
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -374,8 +375,8 @@ def leaf_sums(
     return sums
 
 
-_available: bool | None = None
-_available_lock = threading.Lock()
+_verdicts: dict[str, bool] = {}  # the gates' verdicts in this process
+_verdicts_lock = threading.Lock()
 
 
 def _gate_key() -> str | None:
@@ -403,46 +404,53 @@ def _gate_key() -> str | None:
     return hashlib.sha256(repr(parts).encode()).hexdigest()[:32]
 
 
-def _gate_verdict() -> bool:
-    """:func:`._libm.matches_numpy`, kept in Warp's kernel cache under :func:`_gate_key`: the check
-    compares a few hundred thousand arguments with NumPy, and the same binaries on the same CPU give
-    the same verdict."""
-    key = _gate_key()
-    path = None if key is None else os.path.join(wp.config.kernel_cache_dir or "", f"warpratchet-libm-{key}")
-    if path is not None and os.path.isfile(path):
-        with contextlib.suppress(OSError):
-            with open(path) as kept:
-                verdict = kept.read()
-            if verdict in ("True", "False"):
-                return verdict == "True"
-    verdict = bool(matches_numpy())
-    if path is not None:
-        with contextlib.suppress(OSError):  # a cache that cannot be written is only slower
-            partial = f"{path}.{os.getpid()}.tmp"
-            with open(partial, "w") as kept:
-                kept.write(str(verdict))
-            os.replace(partial, path)
-    return verdict
+def _gate_verdict(name: str, check: Callable[[], bool]) -> bool:
+    """``check()`` (a gate of :mod:`._libm`), kept in Warp's kernel cache under ``name`` and
+    :func:`_gate_key`, and in this process: a gate compares a few hundred thousand arguments with
+    NumPy, and the same binaries on the same CPU give the same verdict."""
+    with _verdicts_lock:
+        if name in _verdicts:
+            return _verdicts[name]
+        init_warp()
+        key = _gate_key()
+        cache = wp.config.kernel_cache_dir or ""
+        path = None if key is None else os.path.join(cache, f"warpratchet-{name}-{key}")
+        verdict = None
+        if path is not None and os.path.isfile(path):
+            with contextlib.suppress(OSError):
+                with open(path) as kept:
+                    verdict = {"True": True, "False": False}.get(kept.read())
+        if verdict is None:
+            verdict = bool(check())
+            if path is not None:
+                with contextlib.suppress(OSError):  # a cache that cannot be written is only slower
+                    partial = f"{path}.{os.getpid()}.tmp"
+                    with open(partial, "w") as kept:
+                        kept.write(str(verdict))
+                    os.replace(partial, path)
+        _verdicts[name] = verdict
+        return verdict
 
 
 def row_pass_available() -> bool:
     """Whether :class:`RowPass` computes the FTLE in its kernel here (:func:`._libm.matches_numpy`);
     known once per process (and per machine: :func:`_gate_verdict`). Without it a row pass takes
     NumPy's own FTLE, made just before its kernel pass."""
-    global _available
-    with _available_lock:
-        if _available is None:
-            init_warp()
-            _available = _gate_verdict()
-        return _available
+    return _gate_verdict("libm", matches_numpy)
+
+
+def row_hypot_available() -> bool:
+    """Whether the kernels' ``hypot`` gives NumPy's bits here (:func:`._libm.hypot_matches_numpy`),
+    known as :func:`row_pass_available` is."""
+    return _gate_verdict("hypot", _libm.hypot_matches_numpy)
 
 
 def numpy_log_norm_into(state: dict[str, np.ndarray], lo: int, hi: int, out: np.ndarray) -> bool:
     """NumPy's ``log(hypot(dx, dp))`` of the points ``lo:hi`` of ``state`` into ``out`` (contiguous),
-    with the ``hypot`` in a kernel, where that is NumPy's here (:func:`._libm.hypot_matches_numpy`:
+    with the ``hypot`` in a kernel, where that is NumPy's here (:func:`row_hypot_available`:
     the costlier of the two, the C library's scalar function called point by point); False, and
     ``out`` meaningless, where it is not, or where a tangent is not finite."""
-    if _libm.hypot_matches_numpy() and _libm.hypot_into(state["dx"][lo:hi], state["dp"][lo:hi], out):
+    if row_hypot_available() and _libm.hypot_into(state["dx"][lo:hi], state["dp"][lo:hi], out):
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
             np.log(out, out=out)
         return True
