@@ -278,6 +278,25 @@ def test_run_pieces_benchmark_times_the_runs_launches_and_rows():
             assert row["start_lag_s"] == row["shard_lag_s"] == 0
 
 
+def test_row_cost_benchmark_splits_a_row_and_bounds_the_run():
+    """Smoke test of ``benchmarks/row_cost.py --quick`` (structure; no timing assertions): a case
+    per thread count, the rows of a run of 6 000 steps counted as a History counts them, the row on
+    one thread split into the row kernels' launches, and the bound formed from the parts it
+    prints."""
+    from warpratchet.history import history_steps
+
+    report = quick_benchmark("row_cost.py")
+    assert report["steps"] == 6000 and report["rows_in_run"] == len(history_steps(0, 6000))
+    assert [case["threads"] for case in report["cases"]] == [1, 2]
+    for case in report["cases"]:
+        low, high = case["row_range_s"]
+        assert 0 < low <= case["row_s"] <= high and case["step_s"] > 0
+        rows = report["rows_in_run"] * (case["row_s"] + case["stop_s"])
+        assert case["best_ratio"] == pytest.approx(case["kernel_s"] / (case["kernel_s"] + rows))
+    split = report["cases"][0]["row_launches_s"]
+    assert {"row_pass", "leaf_sums"} <= set(split) and all(s > 0 for s in split.values())
+
+
 def test_launch_cost_benchmark_splits_a_launch_into_fixed_and_per_step_parts():
     """Smoke test of ``benchmarks/launch_cost.py --quick`` (structure; no timing assertions): one
     row per slice size and way of launching (packed each time, or a recorded launch replayed), and
