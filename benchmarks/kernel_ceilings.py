@@ -55,7 +55,9 @@ TARGETS = {"map": 0.8, "indicators": 0.7, "transport": 0.7}
 def _ensemble(cls: type[Ensemble], points: int, threads: int, pool) -> Ensemble:
     start = Ensemble.sample(PARAMS, points, contenders.INIT, seed=contenders.SEED, threads=threads)
     ens = start if cls is Ensemble else cls(PARAMS, start.array("x"), start.array("p0"), threads=threads)
-    ens._advance(1024, pool)  # compiles (or loads) the kernel; tangents large enough to renormalise
+    # loaded before the threads launch it: a first load on two threads at once can crash Warp
+    ens._kernel.load(ens.device, table=ens.params.table)
+    ens._advance(1024, pool)  # tangents large enough to renormalise
     return ens
 
 
