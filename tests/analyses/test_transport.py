@@ -23,6 +23,12 @@ from warpratchet.transport import _twin as twin
 
 kernels.init_warp()
 FIELDS = ("x", "q", "winding", "dx", "dp", "log_stretch")
+# a plateau where K f = 1: flights of gain 1 of every length from 1 to over 128 steps, so runs of
+# every length inside the decoder's blocks of 8 rows and across them
+PLATEAU = MapParams(2.0, table=Force.from_knots([0, 0.125, 0.375, 0.5], [0, 0.5, 0.5, -0.6]))
+# a strip inside (0, 1), one run of pieces (the paper's wraps around x = 0): the AVX-512 recording
+# keeps its masks as they are, not their complement (record_avx512)
+INNER_STRIP = MapParams(3.0, table=Force.from_knots([0, 0.25, 0.75], [0, -0.4, 0.4]))
 CASES = [
     MapParams(3.0, 0.1, 0.01),  # the README's example: returns within 3 steps (Eq. Cs)
     MapParams(3.618033988749895, 0.05, 0.02),  # Fig. 1(b)
@@ -30,9 +36,8 @@ CASES = [
     MapParams(3.242, 0.088, 0.013),  # returns of 8-15 steps
     MapParams(0.5, 0.4, 0.3),  # weak kicks: long gaps, few flights
     MapParams(3.0, 1e-9, 1e-9),  # elliptic-sawtooth limit (slopes ~5e8)
-    # a plateau where K f = 1: flights of gain 1 of every length from 1 to over 128 steps, so runs
-    # of every length inside the decoder's blocks of 8 rows and across them
-    MapParams(2.0, table=Force.from_knots([0, 0.125, 0.375, 0.5], [0, 0.5, 0.5, -0.6])),
+    PLATEAU,
+    INNER_STRIP,
 ]
 
 
@@ -67,16 +72,20 @@ def test_the_pure_module_names_the_kernels_bins_and_fields():
     assert (pure.BINS, pure.HISTOGRAMS, pure.CARRY_FIELDS) == (BINS, HISTOGRAMS, CARRY_FIELDS)
 
 
-@pytest.mark.parametrize(
-    "p", CASES, ids=lambda p: f"K{p.K:.4g}-" + ("plateau" if p.b1 is None else f"b{p.b1:g}-{p.b2:g}")
-)
+def _case_id(p: MapParams) -> str:
+    if p.b1 is None:  # a force given as a table
+        return f"K{p.K:.4g}-" + ("plateau" if p is PLATEAU else "inner-strip")
+    return f"K{p.K:.4g}-b{p.b1:g}-{p.b2:g}"
+
+
+@pytest.mark.parametrize("p", CASES, ids=_case_id)
 def test_both_step_bodies_count_exactly_what_the_numpy_twin_counts(p):
     """1003 points (lanes past the end) x 1500 steps from global step 5, in odd launches."""
     state, _ = _start(p)
     carry = twin.initial_carry(p, state["x"], 5)
     expected_state, expected_carry, expected = twin.advance(p, state, carry, 1500, step0=5)
     assert expected.sum() > 1000  # events happened
-    if p.b1 is None:  # the plateau's flights of 8 steps and more (bins 3 and up) happened
+    if p is PLATEAU:  # its flights of 8 steps and more (bins 3 and up) happened
         assert expected[1, 3:].sum() > 100
     # block_rows=1: every row through the row loop, the path of an AVX-512 CPU without GFNI
     runs = [("cpu", [1500], 8), ("cpu", [3, 97, 1, 8, 600, 791], 8), ("cpu", [1500], 1)]

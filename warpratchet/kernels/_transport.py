@@ -48,10 +48,10 @@ from ._transport_cpu import (
     CONFLICT_WORD,
     DECODE_CPU,
     FINISH_CPU,
-    RECORD_AVX512,
     RECORD_CPU,
     ROWS,
     SCRATCH_BYTES,
+    record_avx512,
 )
 
 __all__ = ["BINS", "HISTOGRAMS", "CARRY_FIELDS", "advance_map_transport", "TRANSPORT"]
@@ -98,6 +98,7 @@ class _CpuAccumulators:
     rows: int  # rows of the buffer in use
     base: wp.int64  # global step before buffer row 0
     ready: int  # 1 once the trackers hold the carry
+    strip_flip: wp.uint32  # xored with the buffer's strip masks: all ones where they hold the lanes outside
     tallies: wp.types.vector(length=9, dtype=wp.int64)
 
 
@@ -154,7 +155,7 @@ _RECORDING_STEPS: dict[str, wp.Function] = {}
 
 def _recording_steps(force) -> wp.Function:
     """The CPU body's steps of ``force`` with the recording inside (:data:`._transport_cpu.RECORD_CPU`
-    on the AVX2 path, :data:`._transport_cpu.RECORD_AVX512`, register by register, on the AVX-512
+    on the AVX2 path, :func:`._transport_cpu.record_avx512`, register by register, on the AVX-512
     path): each step's row written from the lanes in registers (a thread's lanes and its 8-step
     runs between checks stay in registers, as in ``advance_map``)."""
     tag = "paper" if force.family == "paper" else force.key
@@ -173,7 +174,9 @@ def _recording_steps(force) -> wp.Function:
             before, each, after = RECORD_CPU
             source = cpu_steps_source(force, each=each, before=before, after=after)
         else:
-            before, each, after_each, after = RECORD_AVX512
+            strip = force.strip  # one flag per piece
+            runs = sum(1 for k, inside in enumerate(strip) if inside and (k == 0 or not strip[k - 1]))
+            before, each, after_each, after = record_avx512(outside=runs > 1)
             source = depth_first_steps_source(
                 force, each=each, after_each=after_each, before=before, after=after
             )

@@ -48,6 +48,9 @@ typedef unsigned char u8x128 __attribute__((ext_vector_type(128)));
 typedef long long i64x8 __attribute__((vector_size(64)));
 const long long T = 0x8040201008040201LL; /* byte j = 1 << j: the transpose */
 const i64x8 transpose = {{T, T, T, T, T, T, T, T}};
+typedef unsigned int u32x16 __attribute__((ext_vector_type(16)));
+const unsigned int f = acc.strip_flip; /* 8 rows' masks, 32 bytes, xored with it */
+const u8x64 strip_flip = __builtin_bit_cast(u8x64, (u32x16){{f, f, f, f, f, f, f, f}});
 auto planes8 = [&](const int r, u8v* out) {{
     u8x64 rows01, rows23, rows45, rows67;
     __builtin_memcpy(&rows01, buffer + r * N + 0, 64);
@@ -58,6 +61,7 @@ auto planes8 = [&](const int r, u8v* out) {{
     const u8x64 s01 = GF_T(rows01), s23 = GF_T(rows23), s45 = GF_T(rows45), s67 = GF_T(rows67);
     u8x64 strip_rows = 0;
     __builtin_memcpy(&strip_rows, strip + r, 32);
+    strip_rows = strip_rows ^ strip_flip; /* the rows' lanes in the strip (record_avx512) */
     /* x = the masks' bytes, matrix T: bit i of each byte becomes bit 7 - i */
     const u8x64 strip_reversed =
         (u8x64)__builtin_ia32_vgf2p8affineqb_v64qi((i8x64)strip_rows, (i8x64)transpose, 0);

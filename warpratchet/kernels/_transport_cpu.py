@@ -7,8 +7,8 @@ state (the registers spill). So the CPU hooks split the work:
 
 * after each step: the step's facts, as they come out of it, into a buffer of 128 rows: on the
   AVX-512 path the top byte of each lane's ``gain`` (``|gain| <= 2`` since ``|K f| < 2``; each
-  value has its own top byte) and the ``in_strip`` lanes as a 32-bit mask, written register by
-  register (:data:`RECORD_AVX512`);
+  value has its own top byte) and the ``in_strip`` lanes (or, where that is cheaper, the others) as
+  a 32-bit mask, written register by register (:func:`record_avx512`);
 * at the renormalisation check (every 8 steps) that leaves fewer than 8 rows free, and at the end
   of the launch (``store``): the rows are decoded (the gain codes are three bits of the top
   bytes, ``_GAIN_CODES``) with the trackers as byte vectors (all lanes of a row at once), each
@@ -48,6 +48,7 @@ __all__ = [
     "CONFLICT_WORD",
     "CLAIM_CPU",
     "RECORD_CPU",
+    "record_avx512",
     "DECODE_CPU",
     "FINISH_CPU",
 ]
@@ -64,7 +65,7 @@ CAP = 64
 ROWS = 128
 
 # The launch's scratch array (bytes; a launch's threads use it one after the other): the buffer
-# (ROWS rows of INTERLEAVE gain bytes), the in_strip masks (ROWS x 4 bytes), the byte trackers
+# (ROWS rows of INTERLEAVE gain bytes), the strip's masks (ROWS x 4 bytes), the byte trackers
 # (valid, visited, age, fcode, flen: INTERLEAVE bytes each), the int64 excess (age, flen), and
 # the guard: the owner (a tag of the thread using the scratch) and the conflict word.
 _STRIP = ROWS * INTERLEAVE
@@ -134,33 +135,45 @@ rows = rows + 1;
     "acc.rows = rows;\n",
 )
 
-#: The AVX-512 body's recording, its steps register by register (``step.depth_first_steps_source``):
-#: ``before``, ``each``, ``after_each`` and ``after``. Each step's facts are stored as they come out
-#: of the step, with no conversion: after each register's step, the top byte of each of its lanes'
-#: ``gain`` (a double in -2..2: C0, BF, 00, 3F, 40 hex, one per value) into the buffer row, and its
-#: lanes' ``in_strip`` as one bit each, byte ``r`` of the row's 32-bit mask ``strip``. The decoder
-#: reads gain codes from the top bytes (_GAIN_CODES).
+# The AVX-512 body's recording, its steps register by register (``step.depth_first_steps_source``):
+# ``before``, ``each``, ``after_each`` and ``after`` (:func:`record_avx512`). Each step's facts are
+# stored as they come out of the step, with no conversion: after each register's step, the top
+# byte of each of its lanes' ``gain`` (a double in -2..2: C0, BF, 00, 3F, 40 hex, one per value)
+# into the buffer row, and its lanes' strip as one bit each, byte ``r`` of the row's 32-bit mask
+# ``strip``. The decoder reads gain codes from the top bytes (_GAIN_CODES).
 _TOP_BYTES = ", ".join(str(8 * k + 7) for k in range(REGISTER_LANES))  # each lane's top byte
-RECORD_AVX512 = (
-    """
+
+
+def record_avx512(outside: bool) -> tuple[str, str, str, str]:
+    """The AVX-512 body's recording (above), the masks holding the lanes in the strip, or with
+    ``outside`` those outside it: the cheaper of the two where the strip is more than one run of
+    pieces (the paper's wraps around x = 0), whose ``in_strip`` is an or of comparisons (``korb``)
+    and its complement an and of their negations (one comparison masked by the other). The
+    recording tells the decoder which in ``acc.strip_flip`` (all ones: the rows hold the lanes
+    outside), which the decoder's masks are xored with."""
+    flip = "0xFFFFFFFFu" if outside else "0u"
+    return (
+        f"""
 unsigned char* const scratch = acc.arrays.scratch.data;
 int rows = acc.rows;
 if (rows == 0) acc.base = global_step;
+acc.strip_flip = {flip};
 """,
-    f"""{{
+        f"""{{
 typedef unsigned char raw_r __attribute__((ext_vector_type({8 * REGISTER_LANES})));
 typedef unsigned char top_r __attribute__((ext_vector_type({REGISTER_LANES})));
 typedef bool bool_r __attribute__((ext_vector_type({REGISTER_LANES})));
 const raw_r raw = __builtin_bit_cast(raw_r, gain);
 const top_r top = __builtin_shufflevector(raw, raw, {_TOP_BYTES});
 __builtin_memcpy(scratch + rows * {INTERLEAVE} + r * {REGISTER_LANES}, &top, sizeof(top_r));
-const bool_r inside = __builtin_convertvector(in_strip != 0.0, bool_r);
-scratch[{_STRIP} + 4 * rows + r] = __builtin_bit_cast(unsigned char, inside);
+const bool_r lanes = __builtin_convertvector(in_strip {"==" if outside else "!="} 0.0, bool_r);
+scratch[{_STRIP} + 4 * rows + r] = __builtin_bit_cast(unsigned char, lanes);
 }}
 """,
-    "rows = rows + 1;\n",
-    "acc.rows = rows;\n",
-)
+        "rows = rows + 1;\n",
+        "acc.rows = rows;\n",
+    )
+
 
 # _GAIN_CODES: a row's gain code is three bits of the gain's top byte ``t`` (C0, BF, 00, 3F, 40 hex
 # for -2 .. 2): bit 0 of ``t`` (|gain| = 1), bit 6 (|gain| = 2), bit 7 (the sign), so gains 0, 1,
@@ -173,7 +186,7 @@ _ROWS = """
 for (int r = r0; r < rows; r++) {
     u8v top;
     __builtin_memcpy(&top, buffer + r * N, N);
-    const bv in_strip = __builtin_bit_cast(bv, (mask_t)strip[r]);
+    const bv in_strip = __builtin_bit_cast(bv, (mask_t)(strip[r] ^ acc.strip_flip));
     const u8v gain = gain_code(top);
     /* returns: a visit closes the gap of age + 1 steps */
     age = age + one;
