@@ -43,11 +43,19 @@ to the hand-vectorised C) survive a busy machine better than the absolute rates.
 point-steps per second, ``points * steps / seconds``. The *ceiling* of a row is the
 hand-vectorised C of the warpratchet rows' code path, on as many threads.
 
+With ``--targets`` it then measures, in child processes, what this table does not: the transport
+kernel against the same C (``kernel_ceilings.py``, on each code path this CPU runs) and the run a
+user types against its kernel alone (``end_to_end.py``, at 10^6 points x 6,000 steps and at the
+README's main job), and prints every throughput target with its measured ratio: ``advance_map``
+>= 0.8 and the indicators and transport >= 0.7 of the hand-vectorised C of their code path, the
+run >= 0.9 of its kernel (the medians of each script's rounds).
+
 Usage::
 
     python benchmarks/throughput.py                  # the table (about a minute on 2 cores)
     python benchmarks/throughput.py --json           # one JSON object on stdout
     python benchmarks/throughput.py --quick --json   # 20 000 points x 1000 steps (smoke test)
+    python benchmarks/throughput.py --repeat 2 --targets   # and every target (~5 more minutes)
 """
 
 from __future__ import annotations
@@ -57,6 +65,8 @@ import json
 import math
 import os
 import platform
+import statistics
+import subprocess
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -441,6 +451,101 @@ def print_table(report: dict[str, Any]) -> None:
     )
 
 
+# -- every target ---------------------------------------------------------------------------------
+#: The other kernel's target (``kernel_ceilings.py``), and the run's against its kernel alone.
+TRANSPORT_TARGET_RATIO = 0.7
+RUN_TARGET_RATIO = 0.9
+#: The runs ``end_to_end.py`` times: 10^6 points x 6,000 steps (its default) and the README's main job.
+RUN_JOBS = {
+    "warpratchet run, 10^6 x 6,000": [],
+    "warpratchet run, main job (10^4 x 120,000)": ["--points", "10000", "--steps", "120000", "--rounds", "5"],
+}
+
+
+def _child_report(script: str, args: list[str], isa: str | None = None) -> dict | str:
+    """``benchmarks/SCRIPT --json ARGS`` in a child process (with ``isa``: on that code path): its
+    report, or why there is none."""
+    env = dict(os.environ)
+    if isa is not None:
+        env["WARPRATCHET_CPU_ISA"] = isa  # the child builds that code path
+    command = [sys.executable, str(Path(__file__).with_name(script)), "--json", *args]
+    proc = subprocess.run(command, capture_output=True, text=True, env=env)
+    if proc.returncode != 0 or not proc.stdout.strip():
+        last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
+        return f"{script} exited with status {proc.returncode}: {last}"
+    return json.loads(proc.stdout)
+
+
+def _rounds(count: int) -> str:
+    return f"{count} round" + ("" if count == 1 else "s")
+
+
+def _unavailable(path: str, measured: str, why: str) -> dict:
+    return {"code_path": path, "measured": measured, "unavailable": why}
+
+
+def _target_row(path: str, measured: str, threads: Any, ratio: float, target: float, by: str) -> dict:
+    row = {"code_path": path, "measured": measured, "threads": int(threads), "ratio": ratio}
+    return row | {"target": target, "met": bool(ratio >= target), "by": by}
+
+
+def measure_targets(report: dict[str, Any], quick: bool) -> list[dict[str, Any]]:
+    """Every throughput target with its ratio: the two kernels of ``report`` (this run) and, from
+    child processes, transport (``kernel_ceilings.py`` on each code path of the report) and the run
+    a user types (``end_to_end.py``, each job of :data:`RUN_JOBS`; one ``--quick`` job with
+    ``quick``). A script that cannot run gives a row with its reason instead of a ratio."""
+    rows = []
+    paths = {report["cpu_isa"]: report, **report["other_paths"]}
+    for isa, part in paths.items():
+        for measured, key, target in (
+            ("advance_map", "warpratchet_vs_ceiling", TARGET_RATIO),
+            ("indicators", "indicators_vs_ceiling", INDICATORS_TARGET_RATIO),
+        ):
+            for threads, ratio in part[key].items():
+                if ratio is None:  # the row or its C did not run
+                    why = f"no ratio on {threads} thread(s) (the table says why)"
+                    rows.append(_unavailable(isa, measured, why))
+                    continue
+                rows.append(_target_row(isa, measured, threads, ratio, target, "throughput.py"))
+        ceilings = _child_report(
+            "kernel_ceilings.py", ["--quick"] if quick else [], None if isa == CPU_ISA else isa
+        )
+        if isinstance(ceilings, str):
+            rows.append(_unavailable(isa, "transport", ceilings))
+            continue
+        for row in ceilings["rows"]:
+            ratio = statistics.median(row["transport_vs_c_wall"])
+            by = f"kernel_ceilings.py ({_rounds(ceilings['rounds'])})"
+            rows.append(_target_row(isa, "transport", row["threads"], ratio, TRANSPORT_TARGET_RATIO, by))
+    jobs = {"warpratchet run (--quick)": ["--quick"]} if quick else RUN_JOBS
+    for job, args in jobs.items():
+        runs = _child_report("end_to_end.py", args)
+        if isinstance(runs, str):
+            rows.append(_unavailable(CPU_ISA, job, runs))
+            continue
+        by = f"end_to_end.py ({_rounds(runs['rounds'])})"
+        for row in runs["results"]:
+            ratio = row["run_over_kernel_wall"]["median"]
+            rows.append(_target_row(CPU_ISA, job, row["threads"], ratio, RUN_TARGET_RATIO, by))
+    return rows
+
+
+def print_targets(rows: list[dict[str, Any]]) -> None:
+    print()
+    print("Targets: each kernel against the hand-vectorised C of its code path; the run a user types")
+    print("against its kernel alone (medians of each script's rounds):")
+    print(f"  {'path':<8}{'measured':<46}{'threads':>7}{'ratio':>8}{'target':>8}  {'met':<5}by")
+    for row in rows:
+        if "unavailable" in row:
+            print(f"  {row['code_path']:<8}{row['measured']:<46}  unavailable: {row['unavailable']}")
+            continue
+        met = "yes" if row["met"] else "no"
+        print(
+            f"  {row['code_path']:<8}{row['measured']:<46}{row['threads']:>7}{row['ratio']:>8.2f}"
+            f"{row['target']:>8}  {met:<5}{row['by']}"
+        )
+
+
 # -- command line -----------------------------------------------------------------------------------
 def _positive_seconds(text: str) -> float:
     try:
@@ -486,6 +591,11 @@ def build_parser() -> argparse.ArgumentParser:
         "--device", default="cpu", help="Warp device of the warpratchet rows, e.g. cuda:0 (default cpu)"
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    parser.add_argument(
+        "--targets",
+        action="store_true",
+        help="then measure transport and the run a user types in child processes, and print every target",
+    )
     return parser
 
 
@@ -549,10 +659,15 @@ def main(argv: list[str] | None = None) -> int:
     report = build_report(
         measurements, points, builds, bytes_per_point, args.quick, args.repeat, load_average
     )
+    if args.targets and args.device == "cpu":
+        _log("measuring transport and the run a user types (kernel_ceilings.py, end_to_end.py) ...")
+        report["targets"] = measure_targets(report, args.quick)
     if args.json:
         print(json.dumps(report, allow_nan=False))
     else:
         print_table(report)
+        if "targets" in report:
+            print_targets(report["targets"])
     return 0 if report["all_bitwise_equal"] else 1
 
 

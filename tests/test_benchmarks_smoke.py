@@ -221,6 +221,30 @@ def test_bad_input_is_one_line_and_exit_2(args: tuple[str, ...], needle: str) ->
     assert len(lines) == 1 and needle in lines[0], done.stderr
 
 
+def test_targets_cover_every_kernel_path_and_run():
+    """``throughput.py --quick --json --targets`` (structure; no timing assertions): every target,
+    each kernel on each code path and thread count (transport from ``kernel_ceilings.py``, in a
+    child process) and the run a user types (``end_to_end.py``), with its ratio and whether it is
+    met, or the reason it could not be measured."""
+    report = json.loads(_run("--quick", "--json", "--targets").stdout)
+    threads = sorted({1, report["machine"]["cores"]})
+    rows = report["targets"]
+    expected = [
+        (isa, kernel, t)
+        for isa in (report["cpu_isa"], _other_path(report))
+        for kernel in ("advance_map", "indicators", "transport")
+        for t in threads
+    ] + [(report["cpu_isa"], "warpratchet run (--quick)", t) for t in threads]
+    measured = [(r["code_path"], r["measured"], r["threads"]) for r in rows if "unavailable" not in r]
+    unavailable = [(r["code_path"], r["measured"]) for r in rows if "unavailable" in r]
+    assert [key for key in expected if (key[0], key[1]) not in unavailable] == measured
+    assert all(isa == _other_path(report) for isa, _ in unavailable)  # only where the CPU lacks it
+    targets = {"advance_map": 0.8, "indicators": 0.7, "transport": 0.7, "warpratchet run (--quick)": 0.9}
+    for row in (r for r in rows if "unavailable" not in r):
+        assert row["target"] == targets[row["measured"]]
+        assert row["ratio"] > 0 and row["met"] is (row["ratio"] >= row["target"])
+
+
 def test_indicators_overhead_benchmark_runs_and_the_orbit_is_advance_maps():
     """Smoke test of ``benchmarks/indicators_overhead.py --quick`` (structure; no timing assertions)."""
     report = quick_benchmark("indicators_overhead.py")
