@@ -3,7 +3,7 @@
 A run's history summarises every point at each row (``Ensemble.summary``: the FTLE, the chaotic
 points' ``A_n``, the sums of :func:`~warpratchet.observables.summarize_with_variance`, NumPy's
 numbers bit for bit), and the run stops there. This benchmark takes a strip ensemble (K = 3,
-b1 = 0.1, b2 = 0.01, seed 0) advanced 1000 steps and, on 1 and 2 threads, alternately:
+b1 = 0.1, b2 = 0.01, seed 0) advanced 1000 steps and times, on 1 and 2 threads:
 
 * **a row**: one step (so that the state is the kernel's, just written, as a run's rows find it),
   then ``summary()`` on the threads that made the step, as a run makes its rows; on one thread
@@ -40,7 +40,7 @@ from warpratchet.cli import positive_int
 from warpratchet.history import history_steps
 
 PARAMS = MapParams(K=3.0, b1=0.1, b2=0.01)
-#: Steps of the longer of the two timed runs of the kernel.
+#: Steps of the longer of the two timed launches of the kernel.
 LONG_RUN = 200
 
 
