@@ -31,6 +31,7 @@ import numpy as np
 import warp as wp
 
 from ..errors import KernelError
+from ..force import _strip_runs
 from ._advance import AdvanceKernel, Variant
 from ._runtime import CPU_ISA
 from ._step import (
@@ -174,9 +175,8 @@ def _recording_steps(force) -> wp.Function:
             before, each, after = RECORD_CPU
             source = cpu_steps_source(force, each=each, before=before, after=after)
         else:
-            strip = force.strip  # one flag per piece
-            runs = sum(1 for k, inside in enumerate(strip) if inside and (k == 0 or not strip[k - 1]))
-            before, each, after_each, after = record_avx512(outside=runs > 1)
+            # in_strip is an or of one test (pair) per run of strip pieces (force.cpp_source)
+            before, each, after_each, after = record_avx512(outside=len(_strip_runs(force)) > 1)
             source = depth_first_steps_source(
                 force, each=each, after_each=after_each, before=before, after=after
             )
