@@ -414,18 +414,23 @@ class Ensemble:
         copied = [0] * len(stops)  # pieces copied at each stop
         taken = [0]  # tasks taken
         failed = []
-        ready = threading.Condition()
+        # One lock, two conditions: the threads wait for a piece's previous stretch, this thread
+        # for a stop's whole copy, and each is woken only for what it waits for (a thread woken
+        # for nothing takes a core from the launches).
+        lock = threading.Lock()
+        piece_done = threading.Condition(lock)
+        stop_copied = threading.Condition(lock)
 
         def work() -> None:
             try:
                 while True:
-                    with ready:
+                    with lock:
                         task = taken[0]
                         taken[0] += 1
                         if task >= tasks:
                             return
                         k, i = divmod(task, len(pieces))
-                        ready.wait_for(lambda i=i, k=k: failed or done[i] == k)
+                        piece_done.wait_for(lambda i=i, k=k: failed or done[i] == k)
                         if failed:
                             return
                     lo, hi = pieces[i]
@@ -437,23 +442,26 @@ class Ensemble:
                     if k < len(stops):
                         for name, copy in copies[k].items():
                             copy[lo:hi] = views[name][lo:hi]
-                    with ready:
+                    with lock:
                         done[i] = k + 1
+                        piece_done.notify_all()
                         if k < len(stops):
                             copied[k] += 1
-                        ready.notify_all()
+                            if copied[k] == len(pieces):
+                                stop_copied.notify()
             except BaseException:
-                with ready:
+                with lock:
                     failed.append(True)
-                    ready.notify_all()
+                    piece_done.notify_all()
+                    stop_copied.notify()
                 raise
 
         futures = [pool.submit(work) for _ in range(min(self.threads, len(pieces)))]
         error = None
         try:
             for k, stop in enumerate(stops):
-                with ready:
-                    ready.wait_for(lambda k=k: failed or copied[k] == len(pieces))
+                with lock:
+                    stop_copied.wait_for(lambda k=k: failed or copied[k] == len(pieces))
                 if failed:
                     break
                 at_copy(k, self._state_copy(stop, copies[k], views["p0"]), time.perf_counter())
