@@ -321,6 +321,18 @@ def test_row_cost_benchmark_splits_a_row_and_bounds_the_run():
     assert {"row_pass", "leaf_sums"} <= set(split) and all(s > 0 for s in split.values())
 
 
+def test_command_time_benchmark_splits_fresh_processes_into_their_parts():
+    """Smoke test of ``benchmarks/command_time.py --quick`` (structure; no timing assertions): both
+    ways, each round's start, import, command and exit, which add up to the round's total."""
+    report = quick_benchmark("command_time.py")
+    assert report["command"][:2] == ["warpratchet", "run"] and report["rounds"] == 1
+    assert set(report["seconds"]) == {"console", "main"}
+    for parts in report["seconds"].values():
+        assert all(parts[part]["median"] > 0 for part in ("start", "import", "command", "exit"))
+        total = sum(parts[part]["median"] for part in ("start", "import", "command", "exit"))
+        assert parts["total"]["median"] == pytest.approx(total)
+
+
 def test_launch_cost_benchmark_splits_a_launch_into_fixed_and_per_step_parts():
     """Smoke test of ``benchmarks/launch_cost.py --quick`` (structure; no timing assertions): one
     row per slice size and way of launching (packed each time, or a recorded launch replayed), and

@@ -2,18 +2,36 @@
 
 from __future__ import annotations
 
+import gc
 import sys
+from importlib.metadata import entry_points
 
 import pytest
 from support import MAP_FLAGS, cli, in_process, launch
 
 import warpratchet
-from warpratchet.cli import EXAMPLES, SUBCOMMANDS, build_parser, main
+from warpratchet.cli import EXAMPLES, SUBCOMMANDS, build_parser, console_main, main
 
 
 def test_version():
     done = cli("--version")
     assert done.returncode == 0 and done.stdout == f"warpratchet {warpratchet.__version__}\n"
+
+
+def test_the_command_ends_without_the_teardown_sweeping_its_objects(monkeypatch, capsys):
+    """The ``warpratchet`` command is ``console_main``: ``main``'s status, then every object frozen
+    out of the cycle collector, which the interpreter's teardown would otherwise sweep over and
+    over (``benchmarks/command_time.py``); ``main`` leaves a caller's process as it was."""
+    (script,) = entry_points(group="console_scripts", name="warpratchet")
+    assert script.value == "warpratchet.cli:console_main"
+    monkeypatch.setattr(sys, "argv", ["warpratchet", "--version"])
+    frozen = gc.get_freeze_count()
+    assert main() == 0 and gc.get_freeze_count() == frozen
+    try:
+        assert console_main() == 0 and gc.get_freeze_count() > frozen
+    finally:
+        gc.unfreeze()
+    assert capsys.readouterr().out == f"warpratchet {warpratchet.__version__}\n" * 2
 
 
 def test_top_level_help_describes_the_command_and_gives_examples(capsys):

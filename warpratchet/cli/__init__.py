@@ -21,6 +21,7 @@ with its examples in :data:`EXAMPLES`.
 from __future__ import annotations
 
 import argparse
+import gc
 import os
 import re
 import sys
@@ -39,6 +40,7 @@ from .common import (
 
 __all__ = [
     "main",
+    "console_main",
     "build_parser",
     "UsageError",
     "Interrupted",
@@ -195,5 +197,22 @@ def main(argv: Sequence[str] | None = None) -> int:
         return getattr(exc, "status", 130)
 
 
+def console_main() -> int:
+    """The ``warpratchet`` command as the process runs it (and ``python -m warpratchet``):
+    :func:`main`, after which the process ends.
+
+    Before it does, every object is frozen out of Python's cycle collector (``gc.freeze``):
+    the interpreter's teardown would otherwise collect over all the objects Warp and NumPy made,
+    at each stage of it, a large part of a short command's time (``benchmarks/README.md``,
+    "command_time.py"). Nothing is lost by it: the commands have closed their archives and
+    recordings, the atexit handlers still run, and objects that no cycle holds are still freed
+    as their last reference goes. :func:`main` itself does not freeze: a caller in the same
+    process (a test, a notebook) goes on.
+    """
+    status = main()
+    gc.freeze()
+    return status
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    sys.exit(console_main())
