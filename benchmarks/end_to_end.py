@@ -15,10 +15,15 @@ medians over rounds are printed with their ranges, per wall and per CPU second. 
 A and Lyapunov exponent must equal the kernel-only ensemble's summary bit for bit (exit status 1
 if not).
 
+With ``--fresh`` each of them runs in a process of its own, after the same compile-or-load of the
+kernel: a user's first run, whose first history row loads the row kernels and whose buffers and
+copies of the state touch fresh pages, where the rounds in one process reuse them.
+
 Usage::
 
     python benchmarks/end_to_end.py                      # 10^6 points x 6000 steps, 3 rounds, 1 and 2 threads
     python benchmarks/end_to_end.py --rounds 5 --json
+    python benchmarks/end_to_end.py --fresh              # each run and kernel in a process of its own
     python benchmarks/end_to_end.py --quick --json       # smoke test: 20 000 points x 600 steps
     python benchmarks/end_to_end.py --device cuda:0      # on a GPU (one launch per chunk, no threads)
 """
@@ -30,6 +35,7 @@ import contextlib
 import io
 import json
 import statistics
+import subprocess
 import sys
 
 import warp as wp
@@ -69,6 +75,33 @@ def kernel_alone(points: int, steps: int, threads: int, device: str = "cpu") -> 
     return ens, clock.timing
 
 
+def load_kernel(device: str) -> None:
+    """Compile (or load) the kernel, outside the timings."""
+    Ensemble.sample(PARAMS, 64, threads=1, device=device).run(16)
+
+
+def measured(what: str, points: int, steps: int, threads: int, device: str) -> tuple[Timing, tuple]:
+    """``what`` (``"run"`` or ``"kernel"``) in this process: its timing, and its A and Lyapunov
+    exponent (the report's, or the kernel-only ensemble's summary)."""
+    if what == "run":
+        report, timing = run_cli(PARAMS, points, steps, threads, device)
+        return timing, (report["A"], report["lyapunov"])
+    ens, timing = kernel_alone(points, steps, threads, device)
+    summary = ens.summary(warn=False)
+    return timing, (summary.A, summary.lyapunov)
+
+
+def measured_fresh(what: str, points: int, steps: int, threads: int, device: str) -> tuple[Timing, tuple]:
+    """:func:`measured` in a process of its own (this script with the hidden ``--child``)."""
+    argv = [sys.executable, __file__, "--child", what, "--points", str(points), "--steps", str(steps)]
+    argv += ["--threads", str(threads), "--device", device]
+    done = subprocess.run(argv, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise SystemExit(f"end_to_end.py --child {what} failed: {done.stderr.strip()}")
+    seconds, cpu_seconds, numbers = json.loads(done.stdout.strip().splitlines()[-1])
+    return Timing(seconds, cpu_seconds), tuple(numbers)
+
+
 def spread_text(d: dict[str, float]) -> str:
     """A :func:`median_range` as ``median [min, max]``."""
     return f"{d['median']:.3f} [{d['min']:.2f}, {d['max']:.2f}]"
@@ -101,30 +134,33 @@ def job_size(args: argparse.Namespace) -> tuple[int, int, int]:
 def main(argv: list[str] | None = None) -> int:
     parser = job_parser("end_to_end.py", __doc__.splitlines()[0], rounds=3)
     parser.add_argument("--device", default="cpu", help="Warp device, e.g. cuda:0 (default cpu)")
+    parser.add_argument("--fresh", action="store_true", help="each run and kernel in a process of its own")
+    parser.add_argument("--child", choices=("run", "kernel"), help=argparse.SUPPRESS)
+    parser.add_argument("--threads", type=positive_int, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     points, steps, rounds = job_size(args)
-    try:  # compile (or load) the kernel outside the timings
-        Ensemble.sample(PARAMS, 64, threads=1, device=args.device).run(16)
+    try:
+        load_kernel(args.device)
     except ValueError as error:  # e.g. device = 'cuda:7' is not available (Warp sees: cpu)
         parser.error(str(error))
+    if args.child:  # one measurement for a --fresh parent
+        timing, numbers = measured(args.child, points, steps, args.threads, args.device)
+        print(json.dumps([timing.seconds, timing.cpu_seconds, numbers]))
+        return 0
+    measure = measured_fresh if args.fresh else measured
     on_cpu = wp.get_device(args.device).is_cpu
     results, equal = [], True
     for threads in sorted({1, default_threads()}) if on_cpu else [1]:
         wall, cpu = [], []
         for r in range(rounds):
             order = ("run", "kernel") if r % 2 == 0 else ("kernel", "run")
-            timing = {}
+            timing, numbers = {}, {}
             for what in order:
                 print(f"{threads} thread(s), round {r + 1}: {what}", file=sys.stderr, flush=True)
-                if what == "run":
-                    report, timing[what] = run_cli(PARAMS, points, steps, threads, args.device)
-                else:
-                    ens, timing[what] = kernel_alone(points, steps, threads, args.device)
-            summary = ens.summary(warn=False)
-            equal &= report["A"] == summary.A and report["lyapunov"] == summary.lyapunov
+                timing[what], numbers[what] = measure(what, points, steps, threads, args.device)
+            equal &= numbers["run"] == numbers["kernel"]
             wall.append(timing["kernel"].seconds / timing["run"].seconds)
             cpu.append(timing["kernel"].cpu_seconds / timing["run"].cpu_seconds)
-            del ens
         results.append(
             {
                 "threads": threads,
@@ -136,14 +172,14 @@ def main(argv: list[str] | None = None) -> int:
                 "run_cpu_use": timing["run"].cpu_seconds / (timing["run"].seconds * threads),
             }
         )
-    report = {"points": points, "steps": steps, "rounds": rounds, "device": args.device}
+    report = {"points": points, "steps": steps, "rounds": rounds, "device": args.device, "fresh": args.fresh}
     report |= {"results": results, "bitwise_equal": equal}
     if args.json:
         print(json.dumps(report))
     else:
         print(
             f"warpratchet run / kernel alone, {points:,} points x {steps:,} steps, {rounds} rounds"
-            f" on {args.device}"
+            f" on {args.device}{', each in a fresh process' if args.fresh else ''}"
         )
         head = f"{'threads':>7}  {'wall: median [range]':<24}{'CPU: median [range]':<24}"
         print(head + f"{'CPU use (kernel, run)':>22}")

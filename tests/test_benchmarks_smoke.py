@@ -278,11 +278,14 @@ def test_kernel_ceilings_benchmark_runs_and_every_kernel_follows_the_c():
             assert all(0 < r <= 1 for r in row[f"{name}_slowest_shard"])
 
 
-def test_end_to_end_benchmark_runs_and_reports_the_kernels_numbers():
-    """Smoke test of ``benchmarks/end_to_end.py --quick`` (structure; no timing assertions): the
-    run's reported A and Lyapunov exponent are the kernel-only ensemble's, bit for bit."""
-    report = quick_benchmark("end_to_end.py")
+@pytest.mark.parametrize("fresh", [False, True])
+def test_end_to_end_benchmark_runs_and_reports_the_kernels_numbers(fresh):
+    """Smoke test of ``benchmarks/end_to_end.py --quick`` (structure; no timing assertions), in this
+    process or each run and kernel in a process of its own: the run's reported A and Lyapunov
+    exponent are the kernel-only ensemble's, bit for bit."""
+    report = quick_benchmark("end_to_end.py", *(["--fresh"] if fresh else []))
     assert report["bitwise_equal"] is True and report["rounds"] == 1 and report["device"] == "cpu"
+    assert report["fresh"] is fresh
     assert [row["threads"] for row in report["results"]][0] == 1
     for row in report["results"]:
         for key in ("run_over_kernel_wall", "run_over_kernel_cpu"):

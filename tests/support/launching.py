@@ -94,11 +94,11 @@ def benchmark(name: str, *args: str) -> subprocess.CompletedProcess:
         )
 
 
-def quick_benchmark(name: str) -> dict:
-    """``benchmarks/NAME --quick --json`` (:func:`benchmark`): it must exit 0; its JSON report."""
+def quick_benchmark(name: str, *args: str) -> dict:
+    """``benchmarks/NAME --quick --json ARGS`` (:func:`benchmark`): it must exit 0; its JSON report."""
     import json
 
-    proc = benchmark(name, "--quick", "--json")
+    proc = benchmark(name, "--quick", "--json", *args)
     assert proc.returncode == 0, proc.stderr
     return json.loads(proc.stdout)
 
