@@ -65,6 +65,7 @@ def test_copies_give_the_rows_blocks_and_state_of_stops_bit_for_bit(
     inside = [s for s in stops if s not in (1500, STEPS)]  # the chunks' ends: where the threads meet
     with_copies = History(block_points=64, **settings)
     ens = _history_run(threads, with_copies, chunk_steps=1500)
+    assert "_copies" not in ens.__dict__  # the copies' buffers let go of after the run
     if copies is None:
         assert batches == [[s for s in inside if s < 1500], [s for s in inside if s > 1500]]
     else:  # each batch ends at the stop after three copies, where the threads meet
