@@ -55,7 +55,7 @@ Usage::
     python benchmarks/throughput.py                  # the table (about a minute on 2 cores)
     python benchmarks/throughput.py --json           # one JSON object on stdout
     python benchmarks/throughput.py --quick --json   # 20 000 points x 1000 steps (smoke test)
-    python benchmarks/throughput.py --repeat 2 --targets   # and every target (~5 more minutes)
+    python benchmarks/throughput.py --repeat 2 --targets   # and every target, from child processes
 """
 
 from __future__ import annotations
