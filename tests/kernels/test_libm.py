@@ -24,6 +24,7 @@ from warpratchet.kernels._libm import (
     ftle_like_numpy,
     gate_sample,
     hypot_like_numpy,
+    hypot_matches_numpy,
     log_like_numpy,
     matches_numpy,
     numpy_ftle,
@@ -38,6 +39,11 @@ needs_glibc = pytest.mark.skipif(
     not matches_numpy(),
     reason="this machine's NumPy does not call glibc 2.35+'s hypot and __log_fma (matches_numpy() "
     "is False), so there is nothing to reproduce: the kernels take NumPy's values here",
+)
+needs_glibc_hypot = pytest.mark.skipif(
+    not hypot_matches_numpy(),
+    reason="this machine's NumPy does not call glibc 2.35+'s hypot (hypot_matches_numpy() is False): "
+    "the kernels take NumPy's values here",
 )
 
 
@@ -130,7 +136,7 @@ HYPOT_MAGNITUDES = {
 }
 
 
-@needs_glibc
+@needs_glibc_hypot
 @pytest.mark.parametrize("magnitudes", list(HYPOT_MAGNITUDES))
 def test_hypot_equals_numpy_bit_for_bit(magnitudes):
     """``hypot`` alone, 3 * 10^6 arguments: its two corrections, shortcut and scalings."""
@@ -159,13 +165,12 @@ def test_special_values_are_numpy_or_reported():
             assert _same_bits(got[ok], numpy_ftle(dx, dp, ls, step)[ok]).all()
 
 
-@needs_glibc
-@pytest.mark.parametrize("size", [1, 2, 3, 5, 7, 255, 257, 1023, 1025, 2_500])
-def test_blocks_mixing_every_path(size):
-    """Arrays of any length (blocks and chunks not multiples of the vector width), each block
-    mixing the common paths with the points handled again: norms near 1 and exactly 1, zero,
-    subnormal, scaled by hypot, and non-finite components; NumPy's bits wherever covered."""
-    rng = np.random.default_rng(300 + size)
+BLOCK_SIZES = [1, 2, 3, 5, 7, 255, 257, 1023, 1025, 2_500]
+
+
+def _mixed_tangents(rng, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """Tangents mixing the common paths with the points handled again: norms near 1 and exactly 1,
+    zero, subnormal, scaled by hypot, and 3% non-finite components."""
     kinds = [
         lambda n: 1.0 + rng.uniform(-0.07, 0.07, n),
         lambda n: np.exp(rng.uniform(np.log(1e-3), np.log(1e64), n)),
@@ -180,10 +185,31 @@ def test_blocks_mixing_every_path(size):
     dx, dp = _tangents(rng, norm, _ratios(rng, size))
     bad = rng.random(size) < 0.03
     dx[bad] = rng.choice([np.inf, -np.inf, np.nan], int(bad.sum()))
+    return dx, dp
+
+
+@needs_glibc
+@pytest.mark.parametrize("size", BLOCK_SIZES)
+def test_blocks_mixing_every_path(size):
+    """Arrays of any length (blocks and chunks not multiples of the vector width), each block
+    mixing every path (:func:`_mixed_tangents`); NumPy's bits wherever covered."""
+    rng = np.random.default_rng(300 + size)
+    dx, dp = _mixed_tangents(rng, size)
     log_stretch = rng.uniform(0.0, 1e5, size)
     got, ok = ftle_like_numpy(dx, dp, log_stretch, 7.0)
     assert np.array_equal(ok, np.isfinite(dx) & np.isfinite(dp))
     _check(got[ok], ok[ok], numpy_ftle(dx, dp, log_stretch, 7.0)[ok], dx[ok], dp[ok])
+
+
+@needs_glibc_hypot
+@pytest.mark.parametrize("size", BLOCK_SIZES)
+def test_hypot_blocks_mixing_every_path(size):
+    """``hypot`` alone on the same mixed blocks: NumPy's bits wherever both components are finite,
+    and ``ok`` false exactly where one is not."""
+    dx, dp = _mixed_tangents(np.random.default_rng(300 + size), size)
+    got, ok = hypot_like_numpy(dx, dp)
+    assert np.array_equal(ok, np.isfinite(dx) & np.isfinite(dp))
+    _check(got[ok], ok[ok], np.hypot(dx, dp)[ok], dx[ok], dp[ok])
 
 
 def test_the_gate_holds_where_the_transcription_comes_from():
@@ -199,6 +225,15 @@ def test_the_gate_holds_where_the_transcription_comes_from():
     ):
         pytest.skip("not glibc 2.36 on an x86-64 CPU with FMA and AVX2 and without AVX-512")
     assert matches_numpy() is True
+
+
+def test_the_hypot_gate_holds_where_its_transcription_comes_from():
+    """NumPy's ``hypot`` is the C library's with or without AVX-512 (only its ``log`` is its own
+    there), so on glibc 2.36 for x86-64 the ``hypot`` gate must hold: a transcription broken so that
+    it fails would otherwise only skip the tests above."""
+    if not (platform.machine() == "x86_64" and platform.libc_ver() == ("glibc", "2.36")):
+        pytest.skip("not glibc 2.36 on x86-64")
+    assert hypot_matches_numpy() is True
 
 
 def test_the_gate_is_cached_and_deterministic():
