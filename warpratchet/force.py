@@ -429,13 +429,15 @@ def _assignments(force: Force, struct: str, literal) -> list[tuple[str, str]]:
     return out
 
 
-def cpp_source(force: Force, struct: str = "p") -> tuple[str, str]:
+def cpp_source(force: Force, struct: str = "p", kept: str = "") -> tuple[str, str]:
     """C++ (clang vector extensions, lane vector ``v_t`` and position ``x`` in scope, ``one`` and
     ``zero`` defined) for the CPU body: ``(force, strip)``.
 
     ``force`` defines ``f`` (the force), ``k_slope`` (``K f'``, each piece's ``K a`` rounded
     once) and ``kick = K f``; ``strip`` defines ``in_strip`` (1 in the strip, else 0) from the
-    new ``x``. One operation per statement, so that every rounding is the scalar one.
+    new ``x``. One operation per statement, so that every rounding is the scalar one. ``kept``:
+    a C++ function in scope that each piece's value goes through before the choice of ``f``
+    (the same value; the CPU body's way to keep the choice a blend, ``_step``).
     """
 
     def lit(value: float) -> str:
@@ -447,9 +449,8 @@ def cpp_source(force: Force, struct: str = "p") -> tuple[str, str]:
         op = "<=" if piece.closed else "<"
         lines.append(f"const auto in_{s} = x {op} {_term(piece, 'end', struct, lit)};")
     lines += [f"const v_t {result} = {expr};" for result, expr in _assignments(force, struct, lit)]
-    lines.append(
-        "const v_t f = " + _select([f"in_{s}" for s in range(n - 1)], [f"f{s}" for s in range(n)]) + ";"
-    )
+    values = [f"{kept}(f{s})" if kept else f"f{s}" for s in range(n)]
+    lines.append("const v_t f = " + _select([f"in_{s}" for s in range(n - 1)], values) + ";")
     k_terms = []
     for piece in force.pieces:
         a = piece.slope

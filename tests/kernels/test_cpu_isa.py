@@ -31,9 +31,15 @@ init_warp()
 print(runtime.CPU_ISA, INTERLEAVE, runtime.CPU_COMPILER_FLAGS)
 for kernel in (advance_map, advance_map_indicators, advance_map_transport):
     kernel.load("cpu")
+from warpratchet.transport import TransportEnsemble
+from warpratchet.transport import _twin as twin
+
 p = MapParams(3.0, 0.1, 0.01)
 rng = np.random.default_rng(5)
 x, q = rng.random(1003), rng.random(1003) - 3.0
+# 8 points whose first step folds q (K f a tiny negative, q the next double below -K f)
+x[:8] = np.nextafter(p.table.fields()["c"], 1.0) + np.arange(8) * 2.0**-53
+q[:8] = np.nextafter(-p.K * p.table.evaluate(x[:8])[0], 0.0)
 ens = Ensemble(p, x, q, threads=2)
 ens.step = 3
 start = ens.state()
@@ -47,6 +53,18 @@ got = ens.state()
 for name in ("x", "q", "winding", "dx", "dp", "log_stretch"):
     assert np.array_equal(got[name], expected[name]), name
 assert np.count_nonzero(expected["log_stretch"]) > 100  # renormalised on this path too
+assert np.all(reference.advance(p, start, 1, step0=3)["q"][:8] == 0.0)  # the folds happened
+# transport: its own steps (the recording inside), the orbit and every count the twin's
+transport = TransportEnsemble(p, x, q, threads=2)
+start = transport.state()
+expected, carry, counts = twin.advance(p, start, twin.initial_carry(p, start["x"], 0), 700)
+transport.run(700, chunk_steps=97)
+got = transport.state()
+for name in ("x", "q", "winding", "dx", "dp", "log_stretch"):
+    assert np.array_equal(got[name], expected[name]), f"transport {name}"
+done = transport.transport_state()
+assert np.array_equal(done.counts, counts) and counts.sum() > 1000, "transport counts"
+assert all(np.array_equal(done.carry[name], carry[name]) for name in carry), "transport carry"
 print("bitwise equal")
 """
 

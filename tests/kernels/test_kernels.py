@@ -76,6 +76,36 @@ def test_kernel_equals_numpy_reference_bit_for_bit(p, device):
     assert np.all((got["x"] >= 0) & (got["x"] < 1)) and np.all((got["q"] >= 0) & (got["q"] < 1))
 
 
+def _folding(p: MapParams, n: int, folds: int = 16, seed: int = 7) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` points of which the first ``folds`` fold ``q`` in their first step: ``x`` just above
+    the zero ``c`` of the middle piece of Eq. (fx), where ``K f`` is a tiny negative, and ``q`` the
+    next double below ``-K f``, so that ``t = q + K f`` is a negative of ~1e-32 and
+    ``t - floor(t)`` rounds to 1 (folded to 0, one more whole unit: ``kernels._step``)."""
+    rng = np.random.default_rng(seed)
+    x, q = rng.random(n), rng.random(n)
+    x[:folds] = np.nextafter(p.table.fields()["c"], 1.0) + np.arange(folds) * 2.0**-53
+    q[:folds] = np.nextafter(-p.K * p.table.evaluate(x[:folds])[0], 0.0)
+    return x, q
+
+
+@pytest.mark.parametrize("steps", [1, 40])
+def test_the_fold_of_q_is_the_references_on_every_cpu_kernel(steps):
+    """Where ``q + K f`` lies just below an integer: the paired map and indicator kernels and
+    transport's steps (whose short-chain step takes the position from a choice between ``x + frac``
+    and ``x + 0``, made by the fold's test) give the reference's bits."""
+    from warpratchet.transport import TransportEnsemble
+
+    p = CASES[0]
+    x, q = _folding(p, 200)
+    start = Ensemble(p, x, q, threads=1).state()
+    assert np.all(reference.advance(p, start, 1)["q"][:16] == 0.0)  # every fold happened
+    expected = reference.advance(p, start, steps)
+    for cls in (Ensemble, IndicatorEnsemble, TransportEnsemble):
+        ens = cls(p, x, q, threads=2)
+        ens.run(steps)
+        _assert_reference(ens.state(), expected, "cpu")
+
+
 @pytest.mark.parametrize("n", [4, 31, 32, 33, 63, 64, 65, 97, 129, 200])
 def test_every_size_of_ensemble_and_shard_is_the_reference_bit_for_bit(n):
     """Sizes around a Warp thread's lanes and two blocks of them (the CPU body's threads take two;

@@ -370,6 +370,45 @@ dp = dp + k_slope_dx;
 dx = dx + dp;
 @GAIN_LATE@@STRIP@"""
 
+#: The step for a loop that the step's latency bounds, not its instruction count (one block of
+#: lanes in four chains of registers: the transport kernel's steps, which record each step's row).
+#: :data:`_STEP_ARITHMETIC_CPU_TEMPLATE`'s values, every lane's bits, with the choices on the
+#: position's chain taken between values computed beside their tests, so that the chain from one
+#: position to the next is a few operations shorter:
+#:
+#: * the new position from ``frac`` while the fold is tested: ``x + frac``, or ``x + 0`` where ``q``
+#:   folds to 0 (the template's ``x + q`` there), chosen by the test;
+#: * that sum minus 1 while it is tested against 1, chosen by the test (the template subtracts
+#:   1 or 0, and ``s - 0`` is ``s``);
+#: * ``kept``, an empty ``asm`` that hides how a value was made (a no-op on a vector wider than
+#:   one register, the AVX2 path's, whose choices are blends anyway): LLVM would otherwise turn
+#:   ``c ? s - 1 : s``, and the choice between the force's pieces' values, into an operation
+#:   masked by the test, which waits for it.
+_SHORT_CHAIN_CPU_TEMPLATE = """
+auto kept = [](auto v) {
+#if defined(__x86_64__)
+    if constexpr (sizeof(v) <= 64) { __asm__("" : "+v"(v)); }
+#endif
+    return v;
+};
+@FORCE@const v_t t = q + kick;
+const v_t fl = __builtin_elementwise_floor(t);
+const v_t frac = t - fl;
+const auto wrap = frac >= one;
+q = wrap ? zero : frac;
+const v_t lift = wrap ? one : zero;
+@GAIN_EARLY@const v_t w_fl = w + fl;
+w = w_fl + lift;
+const v_t moved = kept(x + frac);
+const v_t stay = kept(x + zero);
+const v_t sum = wrap ? stay : moved;
+const v_t sum_less_one = kept(sum - one);
+x = sum >= one ? sum_less_one : sum;
+const v_t k_slope_dx = k_slope * dx;
+dp = dp + k_slope_dx;
+dx = dx + dp;
+@GAIN_LATE@@STRIP@"""
+
 _STORE_STATE_CPU = """
 __builtin_memcpy(&s.x, &x, sizeof(v_t));
 __builtin_memcpy(&s.q, &q, sizeof(v_t));
@@ -382,14 +421,16 @@ __builtin_memcpy(&s.dp, &dp, sizeof(v_t));
 _GAIN = "const v_t gain = fl + lift;\n"
 
 
-def _arithmetic(force: Force, early_gain: bool = False) -> str:
+def _arithmetic(force: Force, early_gain: bool = False, short_chain: bool = False) -> str:
     """The step's C++ for ``force``. ``early_gain``: ``gain`` formed as soon as ``fl`` and ``lift``
     exist, which then die there; a loop that reads ``gain`` at the step's end would otherwise keep
     both live through the rest of the step, and with 16 AVX2 registers they are spilled (the
-    same value either way)."""
-    force_code, strip_code = cpp_source(force)
+    same value either way). ``short_chain``: :data:`_SHORT_CHAIN_CPU_TEMPLATE`, for a loop bound
+    by the step's latency (more instructions, so not where the ports bound it: the paired loops)."""
+    force_code, strip_code = cpp_source(force, kept="kept" if short_chain else "")
+    template = _SHORT_CHAIN_CPU_TEMPLATE if short_chain else _STEP_ARITHMETIC_CPU_TEMPLATE
     return (
-        _STEP_ARITHMETIC_CPU_TEMPLATE.replace("@FORCE@", force_code)
+        template.replace("@FORCE@", force_code)
         .replace("@STRIP@", strip_code)
         .replace("@GAIN_EARLY@", _GAIN if early_gain else "")
         .replace("@GAIN_LATE@", "" if early_gain else _GAIN)
@@ -436,10 +477,10 @@ def depth_first_steps_source(force: Force, *, each: str, after_each: str, before
     """C++ of the CPU ``steps`` of ``force`` register by register (:func:`_depth_first_steps`) with
     a variant's per-step work inside: ``each`` after every register's step (it sees the register's
     locals ``gain`` and ``in_strip``, of type ``r_t``, and its index ``r``), ``after_each`` after the
-    last register's, ``before`` ahead of the loads and ``after`` behind the stores."""
-    return (
-        before + _depth_first_steps(_arithmetic(force, early_gain=True) + each, after_each=after_each) + after
-    )
+    last register's, ``before`` ahead of the loads and ``after`` behind the stores. One block of
+    lanes, whose four chains leave the loop bound by the step's latency: the short-chain step."""
+    arithmetic = _arithmetic(force, early_gain=True, short_chain=True)
+    return before + _depth_first_steps(arithmetic + each, after_each=after_each) + after
 
 
 def _depth_first_steps(arithmetic: str, blocks: int = 1, after_each: str = "") -> str:
@@ -491,9 +532,10 @@ def cpu_steps_source(force: Force, each: str = "", before: str = "", after: str 
     with ``each`` after every iteration (it sees the locals of the step, ``gain`` and ``in_strip``
     among them), ``before`` ahead of the loads and ``after`` behind the stores: a variant's
     per-step work inside the loop, so that the lanes stay in registers between two checks."""
-    # A loop that reads the step's facts gets the gain early (_arithmetic); one that does not (the
-    # plain map, the indicators) keeps the source it has, the gain dropped as dead code.
-    arithmetic = _arithmetic(force, early_gain=bool(each))
+    # A loop that reads the step's facts gets the gain early (_arithmetic) and, one block of lanes
+    # in four chains, the short-chain step; one that does not (the plain map, the indicators)
+    # keeps the source it has, the gain dropped as dead code.
+    arithmetic = _arithmetic(force, early_gain=bool(each), short_chain=bool(each))
     if DEPTH_FIRST and not (each or before or after):
         return _depth_first_steps(arithmetic)
     return (
