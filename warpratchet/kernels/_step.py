@@ -573,11 +573,9 @@ __builtin_memcpy(&dx, &s.dx, sizeof(v_t));
 __builtin_memcpy(&dp, &s.dp, sizeof(v_t));
 const v_t threshold = {RENORM_THRESHOLD!r};
 const auto big = __builtin_elementwise_abs(dx) > threshold;
-if (__builtin_expect(__builtin_reduce_or(big) != 0, 0)) {{
+if (__builtin_reduce_or(big) != 0) {{
     /* A chaotic tangent passes 1e100 every ~660 steps (~80 checks), so with 32 lanes this branch
-       runs at about two checks in five. Marked unlikely all the same: a call to log clobbers
-       every vector register, and without the mark LLVM saves the lanes to the stack at every
-       check, taken or not, instead of in here.
+       runs at about two checks in five.
        sqrt and division are IEEE in vector form too; log goes lane by lane. */
     v_t log_stretch;
     __builtin_memcpy(&log_stretch, &s.log_stretch, sizeof(v_t));
