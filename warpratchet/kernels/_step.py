@@ -349,48 +349,9 @@ const v_t one = 1.0, zero = 0.0;
 #: One step on the local lane vectors ``x, q, w, dx, dp``; leaves the step's facts in the locals
 #: ``gain`` and ``in_strip`` (dropped by the compiler where nothing reads them). ``@FORCE@`` (which
 #: defines ``kick`` and ``k_slope``) and ``@STRIP@`` (``in_strip``) are the force's generated C++
-#: (:func:`warpratchet.force.cpp_source`); ``gain`` goes at ``@GAIN_EARLY@`` or ``@GAIN_LATE@``
-#: (:func:`_arithmetic`).
+#: (:func:`warpratchet.force.cpp_source`); ``gain`` goes at ``@GAIN_EARLY@`` or ``@GAIN_LATE@``,
+#: the new position at ``@POSITION@`` (:func:`_arithmetic`).
 _STEP_ARITHMETIC_CPU_TEMPLATE = """
-@FORCE@const v_t t = q + kick;
-const v_t fl = __builtin_elementwise_floor(t);
-q = t - fl;
-const auto wrap = q >= one;
-q = wrap ? zero : q;
-const v_t lift = wrap ? one : zero;
-@GAIN_EARLY@const v_t w_fl = w + fl;
-w = w_fl + lift;
-x = x + q;
-/* x - (x >= 1 ? 1 : 0): x - 0.0 is x (x >= 0), so these are the bits of the choice, with a mask
-   and a subtraction where the choice needs a blend (a three-micro-op one on some Intel cores). */
-const v_t unit = x >= one ? one : zero;
-x = x - unit;
-const v_t k_slope_dx = k_slope * dx;
-dp = dp + k_slope_dx;
-dx = dx + dp;
-@GAIN_LATE@@STRIP@"""
-
-#: The step for a loop that the step's latency bounds, not its instruction count (one block of
-#: lanes in four chains of registers: the transport kernel's steps, which record each step's row).
-#: :data:`_STEP_ARITHMETIC_CPU_TEMPLATE`'s values, every lane's bits, with the choices on the
-#: position's chain taken between values computed beside their tests, so that the chain from one
-#: position to the next is a few operations shorter:
-#:
-#: * the new position from ``frac`` while the fold is tested: ``x + frac``, or ``x + 0`` where ``q``
-#:   folds to 0 (the template's ``x + q`` there), chosen by the test;
-#: * that sum minus 1 while it is tested against 1, chosen by the test (the template subtracts
-#:   1 or 0, and ``s - 0`` is ``s``);
-#: * ``kept``, an empty ``asm`` that hides how a value was made (a no-op on a vector wider than
-#:   one register, the AVX2 path's, whose choices are blends anyway): LLVM would otherwise turn
-#:   ``c ? s - 1 : s``, and the choice between the force's pieces' values, into an operation
-#:   masked by the test, which waits for it.
-_SHORT_CHAIN_CPU_TEMPLATE = """
-auto kept = [](auto v) {
-#if defined(__x86_64__)
-    if constexpr (sizeof(v) <= 64) { __asm__("" : "+v"(v)); }
-#endif
-    return v;
-};
 @FORCE@const v_t t = q + kick;
 const v_t fl = __builtin_elementwise_floor(t);
 const v_t frac = t - fl;
@@ -399,15 +360,48 @@ q = wrap ? zero : frac;
 const v_t lift = wrap ? one : zero;
 @GAIN_EARLY@const v_t w_fl = w + fl;
 w = w_fl + lift;
-const v_t moved = kept(x + frac);
+@POSITION@const v_t k_slope_dx = k_slope * dx;
+dp = dp + k_slope_dx;
+dx = dx + dp;
+@GAIN_LATE@@STRIP@"""
+
+#: The new position, ``x + q`` mod 1.
+_POSITION = """x = x + q;
+/* x - (x >= 1 ? 1 : 0): x - 0.0 is x (x >= 0), so these are the bits of the choice, with a mask
+   and a subtraction where the choice needs a blend (a three-micro-op one on some Intel cores). */
+const v_t unit = x >= one ? one : zero;
+x = x - unit;
+"""
+
+#: The new position for a loop that the step's latency bounds, not its instruction count (one
+#: block of lanes in four chains of registers: the transport kernel's steps, which record each
+#: step's row): :data:`_POSITION`'s values, every lane's bits, with its choices taken between values
+#: computed beside their tests, so that the chain from one position to the next is a few
+#: operations shorter:
+#:
+#: * the new position from ``frac`` while the fold is tested: ``x + frac``, or ``x + 0`` where ``q``
+#:   folds to 0 (:data:`_POSITION`'s ``x + q`` there), chosen by the test;
+#: * that sum minus 1 while it is tested against 1, chosen by the test (:data:`_POSITION` subtracts
+#:   1 or 0, and ``s - 0`` is ``s``);
+#: * ``kept`` (:data:`_KEPT`) keeps the operands of these choices, and of the choice between the
+#:   force's pieces' values, apart: LLVM would otherwise turn ``c ? s - 1 : s`` and that choice
+#:   into an operation masked by the test, which waits for it.
+_SHORT_CHAIN_POSITION = """const v_t moved = kept(x + frac);
 const v_t stay = kept(x + zero);
 const v_t sum = wrap ? stay : moved;
 const v_t sum_less_one = kept(sum - one);
 x = sum >= one ? sum_less_one : sum;
-const v_t k_slope_dx = k_slope * dx;
-dp = dp + k_slope_dx;
-dx = dx + dp;
-@GAIN_LATE@@STRIP@"""
+"""
+
+#: ``kept(v)``: ``v``, through an empty ``asm`` that hides how it was made (a no-op on a vector
+#: wider than one register, the AVX2 path's, whose choices are blends anyway).
+_KEPT = """auto kept = [](auto v) {
+#if defined(__x86_64__)
+    if constexpr (sizeof(v) <= 64) { __asm__("" : "+v"(v)); }
+#endif
+    return v;
+};
+"""
 
 _STORE_STATE_CPU = """
 __builtin_memcpy(&s.x, &x, sizeof(v_t));
@@ -425,16 +419,17 @@ def _arithmetic(force: Force, early_gain: bool = False, short_chain: bool = Fals
     """The step's C++ for ``force``. ``early_gain``: ``gain`` formed as soon as ``fl`` and ``lift``
     exist, which then die there; a loop that reads ``gain`` at the step's end would otherwise keep
     both live through the rest of the step, and with 16 AVX2 registers they are spilled (the
-    same value either way). ``short_chain``: :data:`_SHORT_CHAIN_CPU_TEMPLATE`, for a loop bound
-    by the step's latency (more instructions, so not where the ports bound it: the paired loops)."""
+    same value either way). ``short_chain``: :data:`_SHORT_CHAIN_POSITION`, for a loop bound by
+    the step's latency (more instructions, so not where the ports bound it: the paired loops)."""
     force_code, strip_code = cpp_source(force, kept="kept" if short_chain else "")
-    template = _SHORT_CHAIN_CPU_TEMPLATE if short_chain else _STEP_ARITHMETIC_CPU_TEMPLATE
-    return (
-        template.replace("@FORCE@", force_code)
+    step = (
+        _STEP_ARITHMETIC_CPU_TEMPLATE.replace("@FORCE@", force_code)
+        .replace("@POSITION@", _SHORT_CHAIN_POSITION if short_chain else _POSITION)
         .replace("@STRIP@", strip_code)
         .replace("@GAIN_EARLY@", _GAIN if early_gain else "")
         .replace("@GAIN_LATE@", "" if early_gain else _GAIN)
     )
+    return _KEPT + step if short_chain else step
 
 
 def _step_cpu_sources(force: Force) -> tuple[str, str]:
