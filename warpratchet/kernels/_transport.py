@@ -31,7 +31,6 @@ import numpy as np
 import warp as wp
 
 from ..errors import KernelError
-from ..force import _strip_runs
 from ._advance import AdvanceKernel, Variant
 from ._runtime import CPU_ISA
 from ._step import (
@@ -175,8 +174,7 @@ def _recording_steps(force) -> wp.Function:
             before, each, after = RECORD_CPU
             source = cpu_steps_source(force, each=each, before=before, after=after)
         else:
-            # in_strip is an or of one test (pair) per run of strip pieces (force.cpp_source)
-            before, each, after_each, after = record_avx512(outside=len(_strip_runs(force)) > 1)
+            before, each, after_each, after = record_avx512(force)
             source = depth_first_steps_source(
                 force, each=each, after_each=after_each, before=before, after=after
             )

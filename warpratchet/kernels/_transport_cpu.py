@@ -37,6 +37,7 @@ for every thread, which for a 4.6 KB buffer costs a noticeable part of a launch
 owner and conflict words) turns threads that share it at once into an error.
 """
 
+from ..force import Force, _strip_runs
 from ._step import INTERLEAVE, REGISTER_LANES
 from ._transport_block import BLOCK_CODED_CPU, BLOCK_CPU
 
@@ -144,13 +145,14 @@ rows = rows + 1;
 _TOP_BYTES = ", ".join(str(8 * k + 7) for k in range(REGISTER_LANES))  # each lane's top byte
 
 
-def record_avx512(outside: bool) -> tuple[str, str, str, str]:
-    """The AVX-512 body's recording (above), the masks holding the lanes in the strip, or with
-    ``outside`` those outside it: the cheaper of the two where the strip is more than one run of
-    pieces (the paper's wraps around x = 0), whose ``in_strip`` is an or of comparisons (``korb``)
-    and its complement an and of their negations (one comparison masked by the other). The
-    recording tells the decoder which in ``acc.strip_flip`` (all ones: the rows hold the lanes
-    outside), which the decoder's masks are xored with."""
+def record_avx512(force: Force) -> tuple[str, str, str, str]:
+    """The AVX-512 body's recording (above) for ``force``, the masks holding the lanes in the
+    strip, or those outside it where that is cheaper: where the strip is more than one run of
+    pieces (the paper's wraps around x = 0), whose ``in_strip`` is an or of one test per run
+    (``force.cpp_source``: a ``korb``) and its complement an and of their negations (one
+    comparison masked by the other). The recording tells the decoder which in ``acc.strip_flip``
+    (all ones: the rows hold the lanes outside), which the decoder's masks are xored with."""
+    outside = len(_strip_runs(force)) > 1
     flip = "0xFFFFFFFFu" if outside else "0u"
     return (
         f"""
