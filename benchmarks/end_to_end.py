@@ -35,11 +35,10 @@ import contextlib
 import io
 import json
 import statistics
-import subprocess
 import sys
 
 import warp as wp
-from throughput_contenders import Clock, Timing
+from throughput_contenders import Clock, Timing, child_json
 
 from warpratchet import Ensemble, MapParams
 from warpratchet.cli import main as cli_main
@@ -93,12 +92,11 @@ def measured(what: str, points: int, steps: int, threads: int, device: str) -> t
 
 def measured_fresh(what: str, points: int, steps: int, threads: int, device: str) -> tuple[Timing, tuple]:
     """:func:`measured` in a process of its own (this script with the hidden ``--child``)."""
-    argv = [sys.executable, __file__, "--child", what, "--points", str(points), "--steps", str(steps)]
-    argv += ["--threads", str(threads), "--device", device]
-    done = subprocess.run(argv, capture_output=True, text=True)
-    if done.returncode != 0:
-        raise SystemExit(f"end_to_end.py --child {what} failed: {done.stderr.strip()}")
-    seconds, cpu_seconds, numbers = json.loads(done.stdout.strip().splitlines()[-1])
+    args = ["--child", what, "--points", str(points), "--steps", str(steps)]
+    measurement = child_json("end_to_end.py", [*args, "--threads", str(threads), "--device", device])
+    if isinstance(measurement, str):
+        raise SystemExit(f"end_to_end.py --child {what} failed: {measurement}")
+    seconds, cpu_seconds, numbers = measurement
     return Timing(seconds, cpu_seconds), tuple(numbers)
 
 

@@ -66,7 +66,6 @@ import math
 import os
 import platform
 import statistics
-import subprocess
 import sys
 import tempfile
 from dataclasses import dataclass
@@ -85,6 +84,7 @@ from throughput_contenders import (
     State,
     c_contenders,
     c_simd_contenders,
+    child_json,
     numba_contenders,
     numpy_contenders,
     other_path_contenders,
@@ -462,20 +462,6 @@ RUN_JOBS = {
 }
 
 
-def _child_report(script: str, args: list[str], isa: str | None = None) -> dict | str:
-    """``benchmarks/SCRIPT --json ARGS`` in a child process (with ``isa``: on that code path): its
-    report, or why there is none."""
-    env = dict(os.environ)
-    if isa is not None:
-        env["WARPRATCHET_CPU_ISA"] = isa  # the child builds that code path
-    command = [sys.executable, str(Path(__file__).with_name(script)), "--json", *args]
-    proc = subprocess.run(command, capture_output=True, text=True, env=env)
-    if proc.returncode != 0 or not proc.stdout.strip():
-        last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
-        return f"{script} exited with status {proc.returncode}: {last}"
-    return json.loads(proc.stdout)
-
-
 def _rounds(count: int) -> str:
     return f"{count} round" + ("" if count == 1 else "s")
 
@@ -507,8 +493,8 @@ def measure_targets(report: dict[str, Any], quick: bool) -> list[dict[str, Any]]
                     rows.append(_unavailable(isa, measured, why))
                     continue
                 rows.append(_target_row(isa, measured, threads, ratio, target, "throughput.py"))
-        ceilings = _child_report(
-            "kernel_ceilings.py", ["--quick"] if quick else [], None if isa == CPU_ISA else isa
+        ceilings = child_json(
+            "kernel_ceilings.py", ["--json", *(["--quick"] if quick else [])], None if isa == CPU_ISA else isa
         )
         if isinstance(ceilings, str):
             rows.append(_unavailable(isa, "transport", ceilings))
@@ -519,7 +505,7 @@ def measure_targets(report: dict[str, Any], quick: bool) -> list[dict[str, Any]]
             rows.append(_target_row(isa, "transport", row["threads"], ratio, TRANSPORT_TARGET_RATIO, by))
     jobs = {"warpratchet run (--quick)": ["--quick"]} if quick else RUN_JOBS
     for job, args in jobs.items():
-        runs = _child_report("end_to_end.py", args)
+        runs = child_json("end_to_end.py", ["--json", *args])
         if isinstance(runs, str):
             rows.append(_unavailable(CPU_ISA, job, runs))
             continue

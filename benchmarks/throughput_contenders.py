@@ -11,6 +11,7 @@ from __future__ import annotations
 import atexit
 import ctypes
 import functools
+import json
 import math
 import os
 import pickle
@@ -354,6 +355,22 @@ def _map_args(params: MapParams) -> tuple[float, ...]:
     coefficients as constants and leaves these five unused (they are 0)."""
     fields = params.table.fields()
     return (params.K, *(fields.get(name, 0.0) for name in MAP_FIELDS))
+
+
+# -- benchmarks in child processes -----------------------------------------------------------------
+def child_json(script: str, args: list[str], isa: str | None = None) -> object:
+    """``benchmarks/SCRIPT ARGS`` in a child process (with ``isa``: its kernels built for that
+    code path, ``WARPRATCHET_CPU_ISA``): the JSON of the last line it prints, or, where it exits
+    with an error or prints nothing, why, as a string."""
+    env = dict(os.environ)
+    if isa is not None:
+        env["WARPRATCHET_CPU_ISA"] = isa
+    command = [sys.executable, str(Path(__file__).with_name(script)), *args]
+    proc = subprocess.run(command, capture_output=True, text=True, env=env)
+    if proc.returncode != 0 or not proc.stdout.strip():
+        last = (proc.stderr.strip().splitlines() or ["no output"])[-1]
+        return f"{script} exited with status {proc.returncode}: {last}"
+    return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
 # -- warpratchet on the other code path -------------------------------------------------------------
